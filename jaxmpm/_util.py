@@ -1,0 +1,15 @@
+"""Small helpers shared across modules."""
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array
+
+
+def as_float(x) -> Array:
+    """``x`` as an array of the default float dtype (float64 once x64 is enabled)."""
+    return jnp.asarray(x, dtype=jnp.result_type(float))
+
+
+def tree_where(pred, on_true, on_false):
+    """Leafwise ``jnp.where(pred, a, b)`` over two pytrees of the same structure."""
+    return jax.tree.map(lambda a, b: jnp.where(pred, a, b), on_true, on_false)

@@ -1,0 +1,33 @@
+"""Failure bits recorded in the loop state (a bitmask, as jax-md's neighbour lists do)."""
+
+import jax.numpy as jnp
+
+NONFINITE = 1
+NONPOSITIVE_F = 2
+LEFT_GRID = 4
+CFL = 8
+STENCIL = 16
+
+QUANTITY = {
+    NONFINITE: "non-finite state (x, v, F or sigma is NaN or inf)",
+    NONPOSITIVE_F: "F <= 0 (the particle's domain inverted)",
+    LEFT_GRID: "particle left the grid (its query points reach past the padded grid; raise pad)",
+    CFL: "time step beyond the stable limit (dt > cfl_limit * h / (c + |v|))",
+    STENCIL: "GIMP domain wider than its stencil (raise GIMP.max_span, or use CPDI or MPQ)",
+}
+
+
+def describe(status: int) -> list[str]:
+    """The names of the failures set in ``status``."""
+    return [text for bit, text in QUANTITY.items() if status & bit]
+
+
+def combine(checks):
+    """Fold ``[(bit, mask (n,)), ...]`` into ``(status, first particle of the lowest set bit)``."""
+    status = jnp.zeros((), dtype=jnp.int32)
+    particle = jnp.full((), -1, dtype=jnp.int32)
+    for bit, mask in reversed(checks):  # lowest bit last, so its particle wins
+        hit = jnp.any(mask)
+        status = status | jnp.where(hit, jnp.int32(bit), jnp.int32(0))
+        particle = jnp.where(hit, jnp.argmax(mask).astype(jnp.int32), particle)
+    return status, particle

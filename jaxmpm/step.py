@@ -1,0 +1,226 @@
+"""One explicit USL step (SPEC section 2), assembled from a scene, an interpolator and a transfer.
+
+Optional physics enters by Python structure while tracing (``if scene.body_force is not None``),
+so the compiled step holds only what the scene and the run declared.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from . import status as st_bits
+from ._util import tree_where
+from .boundaries import ArtificialLayer, artificial_layer, traction_points, wall_mask
+from .grid import Grid
+from .interpolators import AbstractInterpolator
+from .interpolators._transfer import point_stencil
+from .materials import AbstractMaterial
+from .particles import Body, State
+from .scenes import AbstractScene
+from .transfers import AbstractTransfer
+
+
+class Model(eqx.Module):
+    """Everything a run is made of: the scene (with its parameters) and the method choices.
+
+    Attributes:
+        scene: the scene; its array fields are the differentiable parameters.
+        interpolator: SPQ, GIMP, CPDI or MPQ.
+        transfer: FLIP, PIC or APIC.
+        artificial_cells: layers of artificial cells at each free end (0: none; static).
+        cfl_limit: a step with ``dt > cfl_limit h / max(c + |v|)`` is a failure; ``None`` disables
+            the check (static).
+    """
+
+    scene: AbstractScene
+    interpolator: AbstractInterpolator
+    transfer: AbstractTransfer
+    artificial_cells: int = eqx.field(static=True, default=0)
+    cfl_limit: float | None = eqx.field(static=True, default=1.0)
+
+
+class Setup(eqx.Module):
+    """What a run derives from its model once, before the time loop."""
+
+    grid: Grid
+    body: Body
+    material: AbstractMaterial
+    layer: ArtificialLayer | None
+    walls: Bool[Array, " n_nodes"] | None
+
+
+def traction_sides(scene: AbstractScene) -> tuple[bool, bool]:
+    """Which ends carry a traction, read from the structure of ``scene.traction``."""
+    left, right = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
+    return left is not None, right is not None
+
+
+def setup(model: Model) -> Setup:
+    scene = model.scene
+    grid = scene.grid()
+    free = (scene.left == "free", scene.right == "free")
+    if model.artificial_cells > 0 and model.artificial_cells + 1 > scene.pad:
+        raise ValueError(
+            f"pad must be > artificial_cells so the artificial layer stays on the grid; "
+            f"got pad={scene.pad}, artificial_cells={model.artificial_cells}"
+        )
+    walls = wall_mask(grid.n_nodes, scene.pad, scene.cells, scene.left, scene.right)
+    return Setup(
+        grid=grid,
+        body=scene.body(),
+        material=scene.material(),
+        layer=artificial_layer(scene.cells, scene.ppc, model.artificial_cells, free),
+        walls=None if walls is None else jnp.asarray(walls),
+    )
+
+
+def initial_state(model: Model, s: Setup) -> State:
+    """The state at ``t = 0``: particles at rest in their reference positions, ``F`` = identity."""
+    scene, body = model.scene, s.body
+    n, dim = body.X.shape
+    dtype = body.X.dtype
+    v = jax.vmap(scene.initial_velocity)(body.X)
+    F = jnp.broadcast_to(jnp.eye(dim, dtype=dtype), (n, dim, dim))
+    C = jax.vmap(jax.jacfwd(scene.initial_velocity))(body.X) if model.transfer.affine else None
+    corners = body.X_corners if model.interpolator.tracks_corners else None
+    return State(
+        t=jnp.zeros((), dtype=dtype),
+        step=jnp.zeros((), dtype=jnp.int32),
+        x=body.X,
+        v=v,
+        F=F,
+        sigma=jax.vmap(s.material.stress)(F),
+        C=C,
+        corners=corners,
+        x_traction=traction_points(body, scene.cells, scene.h, traction_sides(scene)),
+        status=jnp.zeros((), dtype=jnp.int32),
+        fail_step=jnp.full((), -1, dtype=jnp.int32),
+        fail_particle=jnp.full((), -1, dtype=jnp.int32),
+    )
+
+
+def _det(F: Float[Array, "n dim dim"]) -> Float[Array, " n"]:
+    return F[:, 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)
+
+
+def _particle_corners(state: State, body: Body):
+    return None if state.corners is None else state.corners[body.corner_ids]
+
+
+def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
+    """One USL step. A step that fails a check is not taken: the state stays, its status records it."""
+    scene, interp, transfer = model.scene, model.interpolator, model.transfer
+    grid, body, mat = s.grid, s.body, s.material
+    x, v, F, t = state.x, state.v, state.F, state.t
+    m = body.m
+    stencil = interp.stencil(grid, body.r0, x, F, _particle_corners(state, body))
+
+    # 1. Particle to grid: mass and momentum (artificial particles join here, and only here).
+    mass = grid.scatter(stencil.idx, stencil.w * m[:, None])
+    momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, state.C, m))
+    mass_all = mass
+    pre_checks = []
+    if s.layer is not None:
+        layer = s.layer
+        x_a, v_a, F_a = layer.extrapolate(x), layer.extrapolate(v), layer.extrapolate(F)
+        C_a = layer.extrapolate(state.C) if transfer.affine else None
+        src = layer.src[:, 0]
+        r0_a, m_a = body.r0[src], m[src]
+        st_a = interp.stencil(grid, r0_a, x_a, F_a, None, gradients=False)
+        mass_all = mass_all + grid.scatter(st_a.idx, st_a.w * m_a[:, None])
+        momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
+        lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a[:, 0], x_a[:, 0])
+        off = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
+        off_src = jnp.zeros(body.n, dtype=jnp.int32).at[src].max(off.astype(jnp.int32)) > 0
+        pre_checks.append((st_bits.LEFT_GRID, off_src))
+    active = mass_all > 0
+    v_n = jnp.where(active[:, None], momentum / jnp.where(active, mass_all, 1.0)[:, None], 0.0)
+
+    # 2. Forces: internal, body force, tractions at the material boundary points.
+    V = body.V0 * _det(F)
+    f_int = jnp.einsum("nab,nkb->nka", state.sigma, stencil.dw) * V[:, None, None]
+    f = -grid.scatter(stencil.gidx, f_int)
+    if scene.body_force is not None:
+        b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
+        f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
+    if state.x_traction is not None:
+        tr = jnp.stack([tv for tv in scene.traction(t) if tv is not None])  # (k, dim)
+        t_idx, t_s, _ = point_stencil(grid, state.x_traction[:, 0])
+        f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
+
+    # 3. Grid update; inactive nodes (no real mass) get no acceleration; walls hold v = 0.
+    has_mass = mass > 0
+    a = jnp.where(has_mass[:, None], f / jnp.where(has_mass, mass, 1.0)[:, None], 0.0)
+    if s.walls is not None:
+        v_n = jnp.where(s.walls[:, None], 0.0, v_n)
+        a = jnp.where(s.walls[:, None], 0.0, a)
+    v_new = v_n + dt * a
+
+    # 4. Particles.
+    v_p, C = transfer.update(grid, stencil, v, a, v_new, dt)
+    x_p = x + dt * jnp.einsum("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
+
+    # 5. Kinematics, 6. constitutive update.
+    F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
+    sigma = jax.vmap(mat.stress)(F_new)
+    x_tr = state.x_traction
+    if x_tr is not None:
+        x_tr = x_tr + dt * jnp.einsum("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
+
+    new = State(
+        t=(state.step + 1).astype(dt.dtype) * dt,
+        step=state.step + 1,
+        x=x_p,
+        v=v_p,
+        F=F_new,
+        sigma=sigma,
+        C=C,
+        corners=corners,
+        x_traction=x_tr,
+        status=state.status,
+        fail_step=state.fail_step,
+        fail_particle=state.fail_particle,
+    )
+
+    # Checks: a failing step is discarded, so the state kept is always the last good one.
+    checks = []
+    finite = jnp.isfinite(x_p).all(1) & jnp.isfinite(v_p).all(1)
+    finite = finite & jnp.isfinite(F_new).all((1, 2)) & jnp.isfinite(sigma).all((1, 2))
+    if corners is not None:
+        finite = finite & jnp.isfinite(corners[body.corner_ids]).all((1, 2))
+    checks.append((st_bits.NONFINITE, ~finite))
+    checks.append((st_bits.NONPOSITIVE_F, _det(F_new) <= 0.0))
+    lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
+    left_grid = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
+    checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
+    if model.cfl_limit is not None:
+        c = jax.vmap(mat.sound_speed, in_axes=(0, None))(F, scene.rho0)
+        speed = c + jnp.linalg.norm(v, axis=1)
+        checks.append((st_bits.CFL, dt * speed > model.cfl_limit * grid.h))
+    if stencil.ok is not None:
+        checks.append((st_bits.STENCIL, ~stencil.ok))
+    bits, particle = st_bits.combine(checks)
+
+    healthy = state.status == 0
+    ok = healthy & (bits == 0)
+    kept = tree_where(ok, new, state)
+    first = healthy & (bits != 0)
+    return eqx.tree_at(
+        lambda z: (z.status, z.fail_step, z.fail_particle),
+        kept,
+        (
+            state.status | bits,
+            jnp.where(first, state.step + 1, state.fail_step),
+            jnp.where(first, particle, state.fail_particle),
+        ),
+    )
+
+
+def _merge(checks, bit, n):
+    masks = [mask for b, mask in checks if b == bit]
+    out = jnp.zeros(n, dtype=bool)
+    for mask in masks:
+        out = out | mask
+    return out
+
