@@ -6,10 +6,12 @@ Artificial cells (SPEC section 4, the talk's fix for boundary cells), stated pre
   artificial particles at the reference positions real particles would have there.
 - *What*: each artificial particle's current position ``x``, velocity ``v``, deformation gradient
   ``F`` and, with APIC, affine matrix ``C``; its mass and half-length are those of a real particle.
-- *How*: a linear least-squares fit in the reference coordinate ``X`` to the ``ppc`` real particles
-  of the boundary cell (the two outermost real particles when ``ppc == 1``), evaluated at the
-  artificial particle's ``X``. A field that is linear in ``X`` (the talk's ``u = beta t X``) is
-  extrapolated exactly.
+- *How*: ``x`` and ``v`` by a linear least-squares fit in the reference coordinate ``X`` to the
+  ``ppc`` real particles of the boundary cell (the two outermost real particles when ``ppc == 1``),
+  evaluated at the artificial particle's ``X``. Their gradients ``F = dx/dX`` and ``C = dv/dx`` are
+  the one order lower: the mean over the same particles. A linear motion (the talk's
+  ``u = beta t X``) is extrapolated exactly; extrapolating ``F`` linearly as well would multiply
+  particle-to-particle noise in ``F`` by up to ``2 layers + 1`` and destabilise cpGIMP.
 - *When*: at the start of every step, before particle-to-grid, from the current real particles.
   The talk extrapolates "at time 0"; doing it every step keeps the layer consistent with a body
   that has moved.
@@ -41,10 +43,14 @@ class ArtificialLayer(eqx.Module):
     weights: Float[Array, "n_art n_src"]
 
     def extrapolate(self, field: Float[Array, "n *tail"]) -> Float[Array, "n_art *tail"]:
-        """The field at the artificial particles: ``sum_s weights[a, s] field[src[a, s]]``."""
+        """Linear extrapolation (for ``x`` and ``v``): ``sum_s weights[a, s] field[src[a, s]]``."""
         vals = field[self.src]  # (n_art, n_src, *tail)
         w = self.weights.astype(field.dtype).reshape(self.weights.shape + (1,) * (field.ndim - 1))
         return jnp.sum(w * vals, axis=1)
+
+    def mean(self, field: Float[Array, "n *tail"]) -> Float[Array, "n_art *tail"]:
+        """Constant extrapolation (for the gradients ``F`` and ``C``): the mean over the sources."""
+        return jnp.mean(field[self.src], axis=1)
 
 
 def artificial_layer(cells: int, ppc: int, layers: int, sides: tuple[bool, bool]) -> ArtificialLayer | None:

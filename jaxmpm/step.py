@@ -123,17 +123,17 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
     pre_checks = []
     if s.layer is not None:
         layer = s.layer
-        x_a, v_a, F_a = layer.extrapolate(x), layer.extrapolate(v), layer.extrapolate(F)
-        C_a = layer.extrapolate(state.C) if transfer.affine else None
+        x_a, v_a, F_a = layer.extrapolate(x), layer.extrapolate(v), layer.mean(F)
+        C_a = layer.mean(state.C) if transfer.affine else None
         src = layer.src[:, 0]
         r0_a, m_a = body.r0[src], m[src]
         st_a = interp.stencil(grid, r0_a, x_a, F_a, None, gradients=False)
         mass_all = mass_all + grid.scatter(st_a.idx, st_a.w * m_a[:, None])
         momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
         lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a[:, 0], x_a[:, 0])
-        off = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
-        off_src = jnp.zeros(body.n, dtype=jnp.int32).at[src].max(off.astype(jnp.int32)) > 0
-        pre_checks.append((st_bits.LEFT_GRID, off_src))
+        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, src, (lo < grid.x_min[0]) | (hi >= grid.x_max[0]))))
+        if st_a.ok is not None:
+            pre_checks.append((st_bits.STENCIL, _on_sources(body.n, src, ~st_a.ok)))
     active = mass_all > 0
     v_n = jnp.where(active[:, None], momentum / jnp.where(active, mass_all, 1.0)[:, None], 0.0)
 
@@ -148,9 +148,10 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         tr = jnp.stack([tv for tv in scene.traction(t) if tv is not None])  # (k, dim)
         t_idx, t_s, _ = point_stencil(grid, state.x_traction[:, 0])
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
+    has_mass = mass > 0
+    f = fold_massless(f, has_mass)
 
     # 3. Grid update; inactive nodes (no real mass) get no acceleration; walls hold v = 0.
-    has_mass = mass > 0
     a = jnp.where(has_mass[:, None], f / jnp.where(has_mass, mass, 1.0)[:, None], 0.0)
     if s.walls is not None:
         v_n = jnp.where(s.walls[:, None], 0.0, v_n)
@@ -199,7 +200,7 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         speed = c + jnp.linalg.norm(v, axis=1)
         checks.append((st_bits.CFL, dt * speed > model.cfl_limit * grid.h))
     if stencil.ok is not None:
-        checks.append((st_bits.STENCIL, ~stencil.ok))
+        checks.append((st_bits.STENCIL, ~stencil.ok | _merge(pre_checks, st_bits.STENCIL, body.n)))
     bits, particle = st_bits.combine(checks)
 
     healthy = state.status == 0
@@ -215,6 +216,32 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
             jnp.where(first, particle, state.fail_particle),
         ),
     )
+
+
+def fold_massless(f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"]) -> Float[Array, "n_nodes dim"]:
+    """Move force that landed on a node without mass onto the adjacent node with mass.
+
+    A node without (real) mass has no acceleration, so force there would be lost and momentum
+    would not balance. This happens where a query point reaches past the last node with mass: a
+    traction point or an MPQ/GIMP domain corner that the body's expansion carried into the next
+    cell. Folding onto the neighbour (the left one first) gives the boundary node the whole
+    boundary force, as when the boundary point sits exactly on it, so the result is continuous in
+    the boundary position, and the total force is unchanged. Force with no massive neighbour
+    within one node is dropped (no interpolator here reaches that far from every mass).
+    """
+    zero = jnp.zeros_like(f[:1])
+    stray = jnp.where(has_mass[:, None], 0.0, f)
+    left_ok = jnp.concatenate([jnp.zeros((1,), dtype=bool), has_mass[:-1]])
+    right_ok = jnp.concatenate([has_mass[1:], jnp.zeros((1,), dtype=bool)])
+    to_left = jnp.where(left_ok[:, None], stray, 0.0)
+    to_right = jnp.where(~left_ok[:, None] & right_ok[:, None], stray, 0.0)
+    kept = jnp.where(has_mass[:, None], f, 0.0)
+    return kept + jnp.concatenate([to_left[1:], zero]) + jnp.concatenate([zero, to_right[:-1]])
+
+
+def _on_sources(n: int, src, mask):
+    """An artificial particle's failure, reported on the real particle it was extrapolated from."""
+    return jnp.zeros(n, dtype=jnp.int32).at[src].max(mask.astype(jnp.int32)) > 0
 
 
 def _merge(checks, bit, n):
