@@ -24,14 +24,14 @@ from .metrics import diagnostics as diagnostics, errors as errors, separation as
 from .particles import Body as Body, State as State
 from .scenes import SCENES as SCENES, AbstractScene as AbstractScene, GasExpansion as GasExpansion
 from .scenes import VibratingBar as VibratingBar
-from .simulate import (
+from ._simulate import (
     SaveAt as SaveAt,
     SimulationError as SimulationError,
     Solution as Solution,
     simulate as simulate,
     simulate_timed as simulate_timed,
 )
-from .step import Model as Model, initial_state as initial_state, setup as setup, step as step
+from ._step import Model as Model, initial_state as initial_state, setup as setup, step as step
 from .transfers import APIC as APIC, FLIP as FLIP, PIC as PIC, AbstractTransfer as AbstractTransfer
 
 INTERPOLATORS = {

@@ -7,6 +7,7 @@ NONPOSITIVE_F = 2
 LEFT_GRID = 4
 CFL = 8
 STENCIL = 16
+SCENE_DATA = 32
 
 QUANTITY = {
     NONFINITE: "non-finite state (x, v, F or sigma is NaN or inf)",
@@ -14,6 +15,7 @@ QUANTITY = {
     LEFT_GRID: "particle left the grid (its query points reach past the padded grid; raise pad)",
     CFL: "time step beyond the stable limit (dt > cfl_limit * h / (c + |v|))",
     STENCIL: "GIMP domain wider than its stencil (raise GIMP.max_span, or use CPDI or MPQ)",
+    SCENE_DATA: "the scene's traction or body force is not finite (past the end of its solution?)",
 }
 
 

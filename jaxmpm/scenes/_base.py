@@ -48,6 +48,7 @@ class AbstractScene(eqx.Module):
         check_int("pad", self.pad, 1)
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)
+        self.material()  # a material checks its own parameters (gamma > 1, P0 > 0, E > 0, ...)
 
     @abc.abstractmethod
     def material(self) -> AbstractMaterial:

@@ -144,10 +144,14 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
     if scene.body_force is not None:
         b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
         f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
+        pre_checks.append((st_bits.SCENE_DATA, ~jnp.isfinite(b).all(1)))
     if state.x_traction is not None:
         tr = jnp.stack([tv for tv in scene.traction(t) if tv is not None])  # (k, dim)
         t_idx, t_s, _ = point_stencil(grid, state.x_traction[:, 0])
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
+        ends = [i for i, tv in zip((0, body.n - 1), scene.traction(t)) if tv is not None]
+        bad_tr = ~jnp.isfinite(tr).all(1)  # reported on the end particle next to the traction
+        pre_checks.append((st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr)))
     has_mass = mass > 0
     f = fold_massless(f, has_mass)
 
@@ -201,6 +205,8 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         checks.append((st_bits.CFL, dt * speed > model.cfl_limit * grid.h))
     if stencil.ok is not None:
         checks.append((st_bits.STENCIL, ~stencil.ok | _merge(pre_checks, st_bits.STENCIL, body.n)))
+    if scene.body_force is not None or state.x_traction is not None:
+        checks.append((st_bits.SCENE_DATA, _merge(pre_checks, st_bits.SCENE_DATA, body.n)))
     bits, particle = st_bits.combine(checks)
 
     healthy = state.status == 0

@@ -14,7 +14,7 @@ from ._util import as_float
 from .interpolators import AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
-from .step import Model, initial_state, setup, step
+from ._step import Model, initial_state, setup, step
 from .transfers import FLIP, AbstractTransfer
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")

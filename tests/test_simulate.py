@@ -1,0 +1,193 @@
+"""The time-loop driver: jit, scan, recompilation, saving, failures."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+
+SCENE = jm.GasExpansion(cells=4, ppc=2, beta=300.0)
+
+
+def test_jit_equals_no_jit(interpolator):
+    sol = jm.simulate(SCENE, interpolator, dt=1e-5, steps=6, artificial_cells=1)
+    with jax.disable_jit():
+        ref = jm.simulate(SCENE, interpolator, dt=1e-5, steps=6, artificial_cells=1)
+    for name in ("x", "v", "F", "sigma"):
+        np.testing.assert_allclose(getattr(sol.state, name), getattr(ref.state, name), rtol=1e-13, atol=1e-13)
+
+
+def test_scan_equals_python_loop(interpolator, transfer):
+    steps = 7
+    sol = jm.simulate(SCENE, interpolator, dt=1e-5, steps=steps, transfer=transfer, artificial_cells=1)
+    model = jm.Model(SCENE, interpolator, transfer, artificial_cells=1)
+    s = jm.setup(model)
+    state = jm.initial_state(model, s)
+    step = jax.jit(jm.step)
+    for _ in range(steps):
+        state = step(model, s, state, jnp.asarray(1e-5))
+    for name in ("x", "v", "F", "sigma", "corners", "C"):
+        a, b = getattr(sol.state, name), getattr(state, name)
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14)
+    assert int(sol.state.step) == steps
+
+
+class CountingGas(jm.GasExpansion):
+    """Counts how often the run is traced (initial_velocity runs while tracing, never at run time)."""
+
+    def initial_velocity(self, X):
+        CountingGas.traces += 1
+        return super().initial_velocity(X)
+
+
+def test_no_recompilation_for_new_parameter_values():
+    CountingGas.traces = 0
+    a = jm.simulate(CountingGas(beta=100.0, h=0.1), jm.MPQ(), dt=1e-5, steps=5)
+    traced_once = CountingGas.traces
+    assert traced_once > 0
+    b = jm.simulate(CountingGas(beta=250.0, h=0.2, P0=3e5, gamma=1.3), jm.MPQ(), dt=2e-5, steps=5)
+    assert CountingGas.traces == traced_once
+    assert not np.allclose(a.state.F, b.state.F)
+
+
+def test_default_keeps_no_history():
+    sol = jm.simulate(SCENE, jm.SPQ(), dt=1e-5, steps=5)
+    assert sol.history is None and sol.ts is None
+
+
+def test_save_every_k_matches_separate_runs():
+    saveat = jm.SaveAt(every=3, fields=("F", "x"))
+    sol = jm.simulate(SCENE, jm.CPDI(), dt=1e-5, steps=10, saveat=saveat)
+    assert set(sol.history) == {"F", "x"}
+    assert sol.history["F"].shape == (4, SCENE.cells * SCENE.ppc, 1, 1)
+    np.testing.assert_allclose(sol.ts, [0.0, 3e-5, 6e-5, 9e-5], rtol=1e-15)
+    for i, k in enumerate((0, 3, 6, 9)):
+        ref = jm.simulate(SCENE, jm.CPDI(), dt=1e-5, steps=k)
+        np.testing.assert_allclose(sol.history["F"][i], ref.state.F, rtol=1e-15)
+    final = jm.simulate(SCENE, jm.CPDI(), dt=1e-5, steps=10)
+    np.testing.assert_allclose(sol.state.x, final.state.x, rtol=1e-15)
+
+
+def test_optional_state_is_absent_unless_needed():
+    sol = jm.simulate(SCENE, jm.SPQ(), dt=1e-5, steps=1)
+    assert sol.state.C is None and sol.state.corners is None
+    sol = jm.simulate(SCENE, jm.MPQ(), dt=1e-5, steps=1, transfer=jm.APIC())
+    assert sol.state.C is not None and sol.state.corners is not None
+    bar = jm.simulate(jm.VibratingBar(), jm.SPQ(), dt=1e-4, steps=1)
+    assert bar.state.x_traction is None  # free end with zero traction: nothing to apply
+
+
+def test_mpq_domains_stay_contiguous():
+    sol = jm.simulate(SCENE, jm.MPQ(), dt=1e-5, steps=100, artificial_cells=1)
+    c = sol.state.corners[sol.body.corner_ids]
+    np.testing.assert_array_equal(c[1:, 0], c[:-1, 1])  # shared corners coincide exactly
+    F = (c[:, 1, 0] - c[:, 0, 0]) / (2 * sol.body.r0[:, 0])
+    np.testing.assert_allclose(sol.state.F[:, 0, 0], F, rtol=1e-15)
+
+
+# --- failures -------------------------------------------------------------------------------
+
+
+def test_inversion_raises_with_step_particle_and_quantity():
+    """A bar whose velocity amplitude exceeds its wave speed inverts (F = 1 - 3 cos(kX) sin(wt)).
+
+    MPQ's F = (c2 - c1) / (2 r0) changes sign when corners cross; SPQ's multiplicative update only
+    tends to zero at this dt.
+    """
+    scene = jm.VibratingBar(v0=-30.0)
+    with pytest.raises(jm.SimulationError, match=r"step \d+ .*particle \d+ .*F <= 0") as info:
+        jm.simulate(scene, jm.MPQ(), dt=1e-4, steps=2000, cfl_limit=None)
+    sol = info.value.solution
+    fail = sol.failure()
+    assert fail["step"] == int(sol.state.step) + 1  # the failing step was not taken
+    assert bool(jnp.all(sol.state.F > 0))  # the kept state is the last good one
+    assert all(bool(jnp.all(jnp.isfinite(a))) for a in (sol.state.x, sol.state.v, sol.state.sigma))
+
+
+def test_throw_false_returns_status():
+    sol = jm.simulate(jm.VibratingBar(v0=-30.0), jm.MPQ(), dt=1e-4, steps=2000, cfl_limit=None, throw=False)
+    assert int(sol.status) == jm.status.NONPOSITIVE_F
+    assert sol.failure()["particle"] >= 0
+
+
+def test_end_of_manufactured_solution_is_named():
+    """Compressing at beta < 0, F_exact = 1 + beta t reaches 0 at t = 1/|beta|: the traction is NaN there."""
+    scene = jm.GasExpansion(beta=-2000.0, cells=4)
+    with pytest.raises(jm.SimulationError, match="traction or body force is not finite"):
+        jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=100, cfl_limit=None, artificial_cells=1)
+
+
+def test_particle_leaving_grid_is_caught():
+    scene = jm.GasExpansion(beta=2000.0, cells=4, pad=2)
+    with pytest.raises(jm.SimulationError, match="left the grid"):
+        jm.simulate(scene, jm.CPDI(), dt=1e-5, steps=200, cfl_limit=None)
+
+
+def test_cfl_violation_is_caught_before_the_step():
+    with pytest.raises(jm.SimulationError, match=r"step 1 .*stable limit") as info:
+        jm.simulate(SCENE, jm.SPQ(), dt=1e-3, steps=3)
+    assert int(info.value.solution.state.step) == 0
+
+
+def test_gimp_stencil_overflow_is_caught():
+    scene = jm.GasExpansion(beta=3000.0, cells=4, pad=20, ppc=1)
+    with pytest.raises(jm.SimulationError, match="GIMP domain wider"):
+        jm.simulate(scene, jm.GIMP(contiguous=True), dt=1e-5, steps=100, cfl_limit=None)
+
+
+def test_vmap_returns_status_per_member():
+    betas = jnp.array([100.0, -3000.0, 200.0])
+
+    def run(beta):
+        sol = jm.simulate(jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=80, throw=False,
+                          cfl_limit=None)
+        return sol.state.status, sol.state.F
+
+    status, F = jax.vmap(run)(betas)
+    assert [bool(s) for s in status] == [False, True, False]
+    assert bool(jnp.all(jnp.isfinite(F)))
+    for i in (0, 2):
+        single = jm.simulate(jm.GasExpansion(beta=betas[i], cells=4), jm.SPQ(), dt=1e-5, steps=80)
+        np.testing.assert_allclose(F[i], single.state.F, rtol=1e-14)
+
+
+def test_throw_inside_a_transformation_raises():
+    def final_F(beta):
+        return jm.simulate(jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=100, cfl_limit=None).state.F
+
+    with pytest.raises(Exception, match="broke down"):
+        jax.jit(final_F)(jnp.asarray(-2000.0))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(dt=0.0, steps=1), "dt must be > 0"),
+        (dict(dt=float("nan"), steps=1), "dt must be finite"),
+        (dict(dt=1e-5, steps=-1), "steps must be an integer >= 0"),
+        (dict(dt=1e-5, steps=1.5), "steps must be an integer"),
+        (dict(dt=1e-5, steps=1, artificial_cells=-1), "artificial_cells must be an integer >= 0"),
+    ],
+)
+def test_bad_run_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        jm.simulate(SCENE, jm.SPQ(), **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(cells=0), "cells must be an integer >= 1"),
+        (dict(ppc=0), "ppc must be an integer >= 1"),
+        (dict(h=-1.0), "h must be > 0"),
+        (dict(beta=float("inf")), "beta must be finite"),
+        (dict(gamma=1.0), "gamma must be > 1"),
+        (dict(rho0=0.0), "rho0 must be > 0"),
+    ],
+)
+def test_bad_scene_parameters(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        jm.simulate(jm.GasExpansion(**kwargs), jm.SPQ(), dt=1e-5, steps=1)
