@@ -6,33 +6,65 @@ first (the CLI, experiments, notebooks and tests do).
 
 from importlib.metadata import PackageNotFoundError, version
 
+from . import metrics as metrics
 from . import status as status
+from ._simulate import (
+    SaveAt as SaveAt,
+)
+from ._simulate import (
+    SimulationError as SimulationError,
+)
+from ._simulate import (
+    Solution as Solution,
+)
+from ._simulate import (
+    simulate as simulate,
+)
+from ._simulate import (
+    simulate_timed as simulate_timed,
+)
+from ._step import Model as Model
+from ._step import initial_state as initial_state
+from ._step import setup as setup
+from ._step import step as step
 from .grid import Grid as Grid
 from .interpolators import (
     CPDI as CPDI,
+)
+from .interpolators import (
     GIMP as GIMP,
+)
+from .interpolators import (
     MPQ as MPQ,
+)
+from .interpolators import (
     SPQ as SPQ,
+)
+from .interpolators import (
     AbstractInterpolator as AbstractInterpolator,
 )
 from .materials import (
     AbstractMaterial as AbstractMaterial,
+)
+from .materials import (
     AdiabaticGas as AdiabaticGas,
+)
+from .materials import (
     LinearElastic as LinearElastic,
 )
-from .metrics import diagnostics as diagnostics, errors as errors, separation as separation
-from .particles import Body as Body, State as State
-from .scenes import SCENES as SCENES, AbstractScene as AbstractScene, GasExpansion as GasExpansion
+from .metrics import diagnostics as diagnostics
+from .metrics import errors as errors
+from .metrics import separation as separation
+from .particles import Body as Body
+from .particles import State as State
+from .scenes import SCENES as SCENES
+from .scenes import AbstractScene as AbstractScene
+from .scenes import GasExpansion as GasExpansion
 from .scenes import VibratingBar as VibratingBar
-from ._simulate import (
-    SaveAt as SaveAt,
-    SimulationError as SimulationError,
-    Solution as Solution,
-    simulate as simulate,
-    simulate_timed as simulate_timed,
-)
-from ._step import Model as Model, initial_state as initial_state, setup as setup, step as step
-from .transfers import APIC as APIC, FLIP as FLIP, PIC as PIC, AbstractTransfer as AbstractTransfer
+from .transfers import APIC as APIC
+from .transfers import FLIP as FLIP
+from .transfers import PIC as PIC
+from .transfers import AbstractTransfer as AbstractTransfer
 
 INTERPOLATORS = {
     "spq": SPQ,

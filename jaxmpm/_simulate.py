@@ -10,11 +10,11 @@ from jaxtyping import Array, Float
 
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
+from ._step import Model, initial_state, setup, step
 from ._util import as_float
 from .interpolators import AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
-from ._step import Model, initial_state, setup, step
 from .transfers import FLIP, AbstractTransfer
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")
@@ -212,7 +212,9 @@ def simulate(
         ValueError: bad input, before anything is traced.
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
-    model, dt_arr, saveat = _prepare(scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit)
+    model, dt_arr, saveat = _prepare(
+        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit
+    )
     sol = _run_jit(model, dt_arr, steps, saveat, checkpoint)
     return _finish(sol, dt, throw)
 
@@ -236,7 +238,9 @@ def simulate_timed(
         ``(solution, compile_s, wall_s)``: ``compile_s`` covers tracing, lowering and XLA
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
-    model, dt_arr, saveat = _prepare(scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit)
+    model, dt_arr, saveat = _prepare(
+        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit
+    )
     t0 = time.perf_counter()
     compiled = _run_jit.lower(model, dt_arr, steps, saveat, checkpoint).compile()
     t1 = time.perf_counter()

@@ -131,7 +131,9 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         mass_all = mass_all + grid.scatter(st_a.idx, st_a.w * m_a[:, None])
         momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
         lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a[:, 0], x_a[:, 0])
-        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, src, (lo < grid.x_min[0]) | (hi >= grid.x_max[0]))))
+        pre_checks.append(
+            (st_bits.LEFT_GRID, _on_sources(body.n, src, (lo < grid.x_min[0]) | (hi >= grid.x_max[0])))
+        )
         if st_a.ok is not None:
             pre_checks.append((st_bits.STENCIL, _on_sources(body.n, src, ~st_a.ok)))
     active = mass_all > 0
@@ -151,7 +153,9 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
         ends = [i for i, tv in zip((0, body.n - 1), scene.traction(t)) if tv is not None]
         bad_tr = ~jnp.isfinite(tr).all(1)  # reported on the end particle next to the traction
-        pre_checks.append((st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr)))
+        pre_checks.append(
+            (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr))
+        )
     has_mass = mass > 0
     f = fold_massless(f, has_mass)
 
@@ -224,7 +228,9 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
     )
 
 
-def fold_massless(f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"]) -> Float[Array, "n_nodes dim"]:
+def fold_massless(
+    f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"]
+) -> Float[Array, "n_nodes dim"]:
     """Move force that landed on a node without mass onto the adjacent node with mass.
 
     A node without (real) mass has no acceleration, so force there would be lost and momentum
@@ -256,4 +262,3 @@ def _merge(checks, bit, n):
     for mask in masks:
         out = out | mask
     return out
-

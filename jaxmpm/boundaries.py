@@ -42,13 +42,13 @@ class ArtificialLayer(eqx.Module):
     src: Int[Array, "n_art n_src"]
     weights: Float[Array, "n_art n_src"]
 
-    def extrapolate(self, field: Float[Array, "n *tail"]) -> Float[Array, "n_art *tail"]:
+    def extrapolate(self, field: Float[Array, "n ..."]) -> Float[Array, "n_art ..."]:
         """Linear extrapolation (for ``x`` and ``v``): ``sum_s weights[a, s] field[src[a, s]]``."""
         vals = field[self.src]  # (n_art, n_src, *tail)
         w = self.weights.astype(field.dtype).reshape(self.weights.shape + (1,) * (field.ndim - 1))
         return jnp.sum(w * vals, axis=1)
 
-    def mean(self, field: Float[Array, "n *tail"]) -> Float[Array, "n_art *tail"]:
+    def mean(self, field: Float[Array, "n ..."]) -> Float[Array, "n_art ..."]:
         """Constant extrapolation (for the gradients ``F`` and ``C``): the mean over the sources."""
         return jnp.mean(field[self.src], axis=1)
 

@@ -34,7 +34,7 @@ class Grid(eqx.Module):
         i = jnp.arange(self.n_nodes, dtype=self.h.dtype)
         return self.x_min[None, :] + i[:, None] * self.h
 
-    def locate(self, x: Float[Array, "*shape"]) -> tuple[Int[Array, "*shape"], Float[Array, "*shape"]]:
+    def locate(self, x: Float[Array, "..."]) -> tuple[Int[Array, "..."], Float[Array, "..."]]:
         """Cell index ``floor((x - x_min) / h)`` of a 1D coordinate and the fraction within it.
 
         The fraction carries the derivative with respect to ``x``, ``x_min`` and ``h``; the index
@@ -44,7 +44,7 @@ class Grid(eqx.Module):
         base = jnp.floor(xi)
         return base.astype(jnp.int32), xi - base
 
-    def scatter(self, idx: Int[Array, "n k"], values: Float[Array, "n k *tail"]) -> Float[Array, "n_nodes *tail"]:
+    def scatter(self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."]) -> Float[Array, "n_nodes ..."]:
         """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.
 
         A particle whose stencil leaves the grid is flagged by the step's status check, so a drop
@@ -56,6 +56,6 @@ class Grid(eqx.Module):
         out = jnp.zeros((self.n_nodes,) + tail, dtype=values.dtype)
         return out.at[flat_idx].add(flat_val, mode="drop")
 
-    def gather(self, idx: Int[Array, "n k"], field: Float[Array, "n_nodes *tail"]) -> Float[Array, "n k *tail"]:
+    def gather(self, idx: Int[Array, "n k"], field: Float[Array, "n_nodes ..."]) -> Float[Array, "n k ..."]:
         """Node values of ``field`` at ``idx`` (out-of-grid indices read zero)."""
         return field.at[idx].get(mode="fill", fill_value=0.0)

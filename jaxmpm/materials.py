@@ -10,8 +10,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._util import as_float
 from ._checks import check_greater, check_nonnegative, check_positive
+from ._util import as_float
 
 
 class AbstractMaterial(eqx.Module):
@@ -51,7 +51,7 @@ class AdiabaticGas(AbstractMaterial):
         check_greater("gamma", self.gamma, 1.0)
         check_nonnegative("p_atm", self.p_atm)
 
-    def pressure(self, J: Float[Array, "*shape"]) -> Float[Array, "*shape"]:
+    def pressure(self, J: Float[Array, "..."]) -> Float[Array, "..."]:
         return self.P0 * J ** (-self.gamma) - self.p_atm
 
     def stress(self, F):

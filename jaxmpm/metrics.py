@@ -46,8 +46,18 @@ def errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Array | 
     sep = jnp.max(jnp.abs(separation(state, body))) if body.n > 1 else jnp.zeros((), state.x.dtype)
     out: dict[str, Array | None] = dict(separation_max=sep)
     ex = exact_fields(scene, body, state.t)
-    names = ("F_max_rel", "F_rms_rel", "F_max_rel_boundary", "F_rms_rel_boundary", "F_max_rel_interior",
-             "F_rms_rel_interior", "x_max_abs", "x_rms_abs", "v_max_abs", "sigma_max_abs")
+    names = (
+        "F_max_rel",
+        "F_rms_rel",
+        "F_max_rel_boundary",
+        "F_rms_rel_boundary",
+        "F_max_rel_interior",
+        "F_rms_rel_interior",
+        "x_max_abs",
+        "x_rms_abs",
+        "v_max_abs",
+        "sigma_max_abs",
+    )
     if ex is None:
         out.update({k: None for k in names})
         return out
@@ -60,9 +70,13 @@ def errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Array | 
     if bmask is None:
         b = body.boundary
         out["F_max_rel_boundary"] = jnp.max(jnp.where(b, F_err, 0.0))
-        out["F_rms_rel_boundary"] = jnp.sqrt(jnp.sum(jnp.where(b, F_err**2, 0.0)) / jnp.maximum(jnp.sum(b), 1))
+        out["F_rms_rel_boundary"] = jnp.sqrt(
+            jnp.sum(jnp.where(b, F_err**2, 0.0)) / jnp.maximum(jnp.sum(b), 1)
+        )
         out["F_max_rel_interior"] = jnp.max(jnp.where(b, 0.0, F_err))
-        out["F_rms_rel_interior"] = jnp.sqrt(jnp.sum(jnp.where(b, 0.0, F_err**2)) / jnp.maximum(jnp.sum(~b), 1))
+        out["F_rms_rel_interior"] = jnp.sqrt(
+            jnp.sum(jnp.where(b, 0.0, F_err**2)) / jnp.maximum(jnp.sum(~b), 1)
+        )
     else:
         fb, fi = F_err[bmask], F_err[~bmask]
         out["F_max_rel_boundary"] = _max(fb)

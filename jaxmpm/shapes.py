@@ -9,12 +9,12 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 
-def hat(xi: Float[Array, "*shape"]) -> Float[Array, "*shape"]:
+def hat(xi: Float[Array, "..."]) -> Float[Array, "..."]:
     """Linear hat ``max(0, 1 - |xi|)``."""
     return jnp.maximum(0.0, 1.0 - jnp.abs(xi))
 
 
-def hat_integral(xi: Float[Array, "*shape"]) -> Float[Array, "*shape"]:
+def hat_integral(xi: Float[Array, "..."]) -> Float[Array, "..."]:
     """Antiderivative ``int_{-inf}^{xi} hat(s) ds`` of the hat, rising from 0 at -1 to 1 at +1.
 
     Used for the GIMP weight, the hat averaged over a particle domain (Bardenhagen & Kober 2004,

@@ -14,7 +14,9 @@ TOL = 1e-12  # relative, in (F - 1)
 def first_step(interpolator, transfer=None, artificial_cells=0, **scene_kw):
     kw = dict(cells=3, ppc=2, beta=BETA) | scene_kw
     scene = jm.GasExpansion(**kw)
-    sol = jm.simulate(scene, interpolator, dt=DT, steps=1, transfer=transfer, artificial_cells=artificial_cells)
+    sol = jm.simulate(
+        scene, interpolator, dt=DT, steps=1, transfer=transfer, artificial_cells=artificial_cells
+    )
     return scene, sol
 
 

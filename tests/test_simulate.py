@@ -142,8 +142,9 @@ def test_vmap_returns_status_per_member():
     betas = jnp.array([100.0, -3000.0, 200.0])
 
     def run(beta):
-        sol = jm.simulate(jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=80, throw=False,
-                          cfl_limit=None)
+        sol = jm.simulate(
+            jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=80, throw=False, cfl_limit=None
+        )
         return sol.state.status, sol.state.F
 
     status, F = jax.vmap(run)(betas)
@@ -156,7 +157,9 @@ def test_vmap_returns_status_per_member():
 
 def test_throw_inside_a_transformation_raises():
     def final_F(beta):
-        return jm.simulate(jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=100, cfl_limit=None).state.F
+        return jm.simulate(
+            jm.GasExpansion(beta=beta, cells=4), jm.SPQ(), dt=1e-5, steps=100, cfl_limit=None
+        ).state.F
 
     with pytest.raises(Exception, match="broke down"):
         jax.jit(final_F)(jnp.asarray(-2000.0))

@@ -24,8 +24,17 @@ def test_hand_computed_spq_step():
     state = jm.initial_state(model, s)
     F0 = jnp.array([1.2, 1.0])[:, None, None]
     state = jm.State(
-        t=state.t, step=state.step, x=state.x, v=jnp.zeros((2, 1)), F=F0, sigma=F0 - 1.0, C=None,
-        corners=None, x_traction=None, status=state.status, fail_step=state.fail_step,
+        t=state.t,
+        step=state.step,
+        x=state.x,
+        v=jnp.zeros((2, 1)),
+        F=F0,
+        sigma=F0 - 1.0,
+        C=None,
+        corners=None,
+        x_traction=None,
+        status=state.status,
+        fail_step=state.fail_step,
         fail_particle=state.fail_particle,
     )
     new = jm.step(model, s, state, jnp.asarray(0.1))
@@ -42,7 +51,9 @@ def test_artificial_layer_extrapolates_linear_fields_exactly(ppc, layers):
     cells = 4
     layer = artificial_layer(cells, ppc, layers, (True, True))
     X = (np.arange(cells * ppc) + 0.5) / ppc
-    X_art = np.concatenate([-(np.arange(layers * ppc)[::-1] + 0.5) / ppc, cells + (np.arange(layers * ppc) + 0.5) / ppc])
+    X_art = np.concatenate(
+        [-(np.arange(layers * ppc)[::-1] + 0.5) / ppc, cells + (np.arange(layers * ppc) + 0.5) / ppc]
+    )
     field = jnp.asarray(3.0 - 2.5 * X)[:, None]
     np.testing.assert_allclose(layer.extrapolate(field)[:, 0], 3.0 - 2.5 * X_art, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(layer.mean(jnp.full((cells * ppc, 1), 1.7))[:, 0], 1.7, rtol=1e-15)

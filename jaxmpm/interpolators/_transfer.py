@@ -8,8 +8,8 @@ from ._base import Stencil
 
 
 def point_stencil(
-    grid: Grid, y: Float[Array, "*shape"]
-) -> tuple[Int[Array, "*shape 2"], Float[Array, "*shape 2"], Float[Array, "*shape 2"]]:
+    grid: Grid, y: Float[Array, "..."]
+) -> tuple[Int[Array, "... 2"], Float[Array, "... 2"], Float[Array, "... 2"]]:
     """Nodes, hat values ``S_i(y)`` and hat slopes ``S_i'(y)`` of the two nodes around points ``y``.
 
     A point exactly on node ``j`` gets nodes ``(j, j + 1)`` with values ``(1, 0)`` and the slopes of
@@ -23,7 +23,9 @@ def point_stencil(
     return idx, w, slope
 
 
-def velocity_gradient(grid: Grid, stencil: Stencil, v_nodes: Float[Array, "n_nodes dim"]) -> Float[Array, "n dim dim"]:
+def velocity_gradient(
+    grid: Grid, stencil: Stencil, v_nodes: Float[Array, "n_nodes dim"]
+) -> Float[Array, "n dim dim"]:
     """``L_p = sum_i v_i (dphi_ip)^T``, the velocity gradient each particle sees."""
     v = grid.gather(stencil.gidx, v_nodes)  # (n, kg, dim)
     return jnp.einsum("nka,nkb->nab", v, stencil.dw)

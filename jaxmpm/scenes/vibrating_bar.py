@@ -57,4 +57,6 @@ class VibratingBar(AbstractScene):
         amp = self.v0 / w * jnp.sin(w * t)
         u = amp * jnp.sin(k * X)
         F = jnp.reshape(1.0 + amp * k * jnp.cos(k * X[0]), (1, 1))
-        return dict(x=X + u, v=self.v0 * jnp.cos(w * t) * jnp.sin(k * X), F=F, sigma=self.material().stress(F))
+        return dict(
+            x=X + u, v=self.v0 * jnp.cos(w * t) * jnp.sin(k * X), F=F, sigma=self.material().stress(F)
+        )

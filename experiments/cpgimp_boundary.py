@@ -1,0 +1,58 @@
+"""cpGIMP with artificial cells at the stationary left end of the gas expansion: error against dt.
+
+Prints the relative F error of the leftmost and rightmost particles at several times for three time
+steps, at the scene defaults and at a softer gas (P0 = p_atm = 1e5 Pa, beta = 100 /s). An error that
+halves with dt is a time-discretisation error; one that does not is a property of the semi-discrete
+scheme. Usage: python experiments/cpgimp_boundary.py [--small]
+"""
+
+import sys
+
+import jax
+import numpy as np
+
+jax.config.update("jax_enable_x64", True)
+import jaxmpm as jm  # noqa: E402
+
+TIMES = (2.5e-4, 5e-4, 7.5e-4, 1.0e-3, 1.25e-3)
+
+
+def main(small: bool = False) -> list[dict]:
+    rows = []
+    cases = {
+        "defaults": jm.GasExpansion(),
+        "P0=p_atm=1e5, beta=100": jm.GasExpansion(P0=1e5, p_atm=1e5, beta=100.0),
+    }
+    for label, scene in cases.items():
+        for dt in (1e-5, 5e-6) if small else (1e-5, 5e-6, 2.5e-6):
+            steps = int(round(TIMES[-1] / dt))
+            sol = jm.simulate(
+                scene,
+                jm.GIMP(contiguous=True),
+                dt=dt,
+                steps=steps,
+                artificial_cells=1,
+                saveat=jm.SaveAt(every=1, fields=("F",)),
+                throw=False,
+            )
+            F_exact = 1 + float(scene.beta) * np.asarray(sol.ts)
+            F = np.asarray(sol.history["F"][:, :, 0, 0])
+            idx = [int(round(t / dt)) for t in TIMES]
+            left = np.abs(F[idx, 0] / F_exact[idx] - 1)
+            right = np.abs(F[idx, -1] / F_exact[idx] - 1)
+            rows.append(
+                dict(case=label, dt=dt, left=left.tolist(), right=right.tolist(), status=int(sol.status))
+            )
+            print(
+                f"{label:24s} dt={dt:8.1e}  left  "
+                + " ".join(f"{e:8.2e}" for e in left)
+                + "   right "
+                + " ".join(f"{e:8.2e}" for e in right)
+                + f"   status={int(sol.status)}"
+            )
+    return rows
+
+
+if __name__ == "__main__":
+    print("relative F error of the end particles at t = " + ", ".join(f"{t:g}" for t in TIMES))
+    main(small="--small" in sys.argv)

@@ -1,0 +1,252 @@
+"""The ``jaxmpm`` command: ``scenes``, ``run`` and ``study``.
+
+A contract that outside scripts rely on: command names, ``name=value`` scene parameters and the
+JSON keys of ``run --json`` are kept stable (extended, never renamed).
+"""
+
+import argparse
+import json
+import math
+import re
+import sys
+
+RUN_JSON_ERRORS = (
+    "F_max_rel",
+    "F_rms_rel",
+    "F_max_rel_boundary",
+    "F_max_rel_interior",
+    "x_max_abs",
+    "separation_max",
+)
+
+
+class UsageError(Exception):
+    """Bad input from the command line: one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse takes '-1e-5' for an option (its matcher has no exponent); the check that follows
+        # must say "dt must be > 0", not "expected one argument".
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+    def error(self, message):  # one clear line, no usage dump, no traceback
+        raise UsageError(message)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="jaxmpm", description="Differentiable MPM in JAX: SPQ, GIMP, CPDI and MPQ side by side.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    sc = sub.add_parser("scenes", help="list scenes with their parameters and defaults")
+    sc.add_argument("--json", action="store_true", help="print one JSON object")
+
+    run = sub.add_parser("run", help="run a scene and report its errors")
+    run.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
+    run.add_argument("params", nargs="*", metavar="name=value", help="scene parameters")
+    run.add_argument(
+        "--interpolator",
+        required=True,
+        choices=["spq", "gimp", "cpgimp", "cpdi", "mpq"],
+        help="gimp is uGIMP (l = r0); cpgimp is contiguous-particle GIMP (l = F r0)",
+    )
+    run.add_argument("--artificial-cells", type=int, default=0, metavar="N", help="layers at each free end")
+    run.add_argument("--transfer", default="flip", choices=["flip", "pic", "apic"])
+    run.add_argument("--dt", type=float, required=True, help="time step (> 0)")
+    run.add_argument("--steps", type=int, required=True, help="number of steps (>= 0)")
+    run.add_argument(
+        "--cfl-limit",
+        default="1.0",
+        metavar="X",
+        help="fail a step with dt > X h / max(c + |v|); 'none' disables (default 1.0)",
+    )
+    run.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+    st = sub.add_parser("study", help="run a study and write its figures and tables")
+    st.add_argument("name", choices=["talk"], help="talk: the 2013 MPM workshop comparison")
+    st.add_argument("--out", required=True, help="output directory")
+    st.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")
+    return p
+
+
+def _scene_from(name: str, assignments: list[str]):
+    from .scenes import SCENES
+
+    if name not in SCENES:
+        raise UsageError(f"unknown scene {name!r}; allowed: {', '.join(sorted(SCENES))}")
+    cls = SCENES[name]
+    defaults = cls.parameters()
+    kwargs = {}
+    for item in assignments:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise UsageError(f"scene parameters are name=value, got {item!r}")
+        if key not in defaults:
+            raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
+        if isinstance(defaults[key], int):
+            try:
+                kwargs[key] = int(raw)
+            except ValueError:
+                raise UsageError(f"{key} must be an integer, got {raw!r}") from None
+        else:
+            try:
+                value = float(raw)
+            except ValueError:
+                raise UsageError(f"{key} must be a number, got {raw!r}") from None
+            if not math.isfinite(value):
+                raise UsageError(f"{key} must be finite, got {raw}")
+            kwargs[key] = value
+    try:
+        return cls(**kwargs)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+
+
+def _floats(a) -> list:
+    import numpy as np
+
+    arr = np.asarray(a, dtype=float)
+    return arr.tolist()
+
+
+def _scalar(x):
+    return None if x is None else float(x)
+
+
+def _cmd_scenes(args) -> int:
+    from .scenes import SCENES
+
+    if args.json:
+        out = {
+            name: dict(description=cls.description, parameters=cls.parameters())
+            for name, cls in SCENES.items()
+        }
+        print(json.dumps(out))
+        return 0
+    for name, cls in SCENES.items():
+        print(f"{name}: {cls.description}")
+        for key, value in cls.parameters().items():
+            kind = "int" if isinstance(value, int) else "float"
+            print(f"    {key:<8} = {value!r:<10} ({kind})")
+    return 0
+
+
+def _cmd_run(args) -> int:
+    import numpy as np
+
+    import jaxmpm as jm
+
+    scene = _scene_from(args.scene, args.params)
+    if args.cfl_limit.lower() == "none":
+        cfl = None
+    else:
+        try:
+            cfl = float(args.cfl_limit)
+        except ValueError:
+            raise UsageError(f"--cfl-limit must be a number or 'none', got {args.cfl_limit!r}") from None
+    interp = jm.INTERPOLATORS[args.interpolator]()
+    transfer = jm.TRANSFERS[args.transfer]()
+    try:
+        sol, compile_s, wall_s = jm.simulate_timed(
+            scene,
+            interp,
+            dt=args.dt,
+            steps=args.steps,
+            transfer=transfer,
+            artificial_cells=args.artificial_cells,
+            cfl_limit=cfl,
+        )
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    err = jm.errors(scene, sol.state, sol.body)
+    diag = jm.diagnostics(scene, sol.state, sol.body)
+    params = {
+        k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
+        for k, v in scene.parameters().items()
+    }
+    st = sol.state
+    particles = dict(
+        X=_floats(sol.body.X[:, 0]),
+        x=_floats(st.x[:, 0]),
+        v=_floats(st.v[:, 0]),
+        F=_floats(st.F[:, 0, 0]),
+        sigma=_floats(st.sigma[:, 0, 0]),
+    )
+    if args.json:
+        out = dict(
+            scene=args.scene,
+            interpolator=args.interpolator,
+            transfer=args.transfer,
+            artificial_cells=args.artificial_cells,
+            dt=args.dt,
+            steps=args.steps,
+            t=float(st.t),
+            params=params,
+            particles=particles,
+            errors={k: _scalar(v) for k, v in err.items()},
+            diagnostics={k: float(v) for k, v in diag.items()},
+            status=int(st.status),
+            wall_s=wall_s,
+            compile_s=compile_s,
+        )
+        print(json.dumps(out))
+        return 0
+    print(
+        f"{args.scene}  interpolator={args.interpolator}  transfer={args.transfer}  "
+        f"artificial_cells={args.artificial_cells}  dt={args.dt:g}  steps={args.steps}  t={float(st.t):.6g}"
+    )
+    print("params: " + "  ".join(f"{k}={v}" for k, v in params.items()))
+    ex = jm.metrics.exact_fields(scene, sol.body, st.t)
+    head = f"{'p':>4} {'X':>12} {'x':>12} {'v':>12} {'F':>12} {'sigma':>13}"
+    print(head + (f" {'F_exact':>12}" if ex is not None else ""))
+    for p in range(sol.body.n):
+        row = (
+            f"{p:>4} {particles['X'][p]:>12.6g} {particles['x'][p]:>12.6g} {particles['v'][p]:>12.6g} "
+            f"{particles['F'][p]:>12.8f} {particles['sigma'][p]:>13.6g}"
+        )
+        if ex is not None:
+            row += f" {float(np.asarray(ex['F'])[p, 0, 0]):>12.8f}"
+        print(row)
+    print("errors: " + "  ".join(f"{k}={_scalar(v):.4g}" for k, v in err.items() if v is not None))
+    print("diagnostics: " + "  ".join(f"{k}={float(v):.6g}" for k, v in diag.items()))
+    print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
+    return 0
+
+
+def _cmd_study(args) -> int:
+    from .studies import talk
+
+    talk.main(out=args.out, small=args.small)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxmpm`` console script. Enables float64 before anything is built."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    from ._simulate import SimulationError
+
+    try:
+        args = _parser().parse_args(argv)
+        return {"scenes": _cmd_scenes, "run": _cmd_run, "study": _cmd_study}[args.command](args)
+    except UsageError as e:
+        print(f"jaxmpm: error: {e}", file=sys.stderr)
+        return 2
+    except SimulationError as e:
+        msg = str(e).split(" The state of the last good step")[0]
+        last = int(e.solution.state.step)
+        print(
+            f"{msg} The last good state is step {last}; rerun with --steps {last} to see it.", file=sys.stderr
+        )
+        return 3
+
+
+def console() -> None:
+    """The console script: ``sys.exit(main())``."""
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    console()
