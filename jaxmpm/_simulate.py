@@ -165,11 +165,11 @@ def _finish(sol: Solution, dt, throw: bool) -> Solution:
     )
 
 
-def _prepare(scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit):
+def _prepare(scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering):
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit)
-    model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit)
+    model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit, ordering)
     return model, as_float(dt), saveat
 
 
@@ -183,6 +183,7 @@ def simulate(
     artificial_cells: int = 0,
     saveat: SaveAt | None = None,
     cfl_limit: float | None = 1.0,
+    ordering: str = "usl",
     checkpoint: bool = False,
     throw: bool = True,
 ) -> Solution:
@@ -202,6 +203,7 @@ def simulate(
         saveat: what to keep besides the final state (default: nothing).
         cfl_limit: fail a step whose ``dt`` exceeds ``cfl_limit h / max(c + |v|)``; ``None`` to
             allow any step.
+        ordering: ``"usl"`` (default, the talk's) or ``"musl"`` (see ``jaxmpm.Model``).
         checkpoint: rematerialise each step in reverse mode (``jax.checkpoint``) to save memory.
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
 
@@ -213,7 +215,7 @@ def simulate(
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
     model, dt_arr, saveat = _prepare(
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit
+        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering
     )
     sol = _run_jit(model, dt_arr, steps, saveat, checkpoint)
     return _finish(sol, dt, throw)
@@ -229,6 +231,7 @@ def simulate_timed(
     artificial_cells: int = 0,
     saveat: SaveAt | None = None,
     cfl_limit: float | None = 1.0,
+    ordering: str = "usl",
     checkpoint: bool = False,
     throw: bool = True,
 ) -> tuple[Solution, float, float]:
@@ -239,7 +242,7 @@ def simulate_timed(
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
     model, dt_arr, saveat = _prepare(
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit
+        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering
     )
     t0 = time.perf_counter()
     compiled = _run_jit.lower(model, dt_arr, steps, saveat, checkpoint).compile()

@@ -20,6 +20,8 @@ from .particles import Body, State
 from .scenes import AbstractScene
 from .transfers import AbstractTransfer
 
+ORDERINGS = ("usl", "musl")
+
 
 class Model(eqx.Module):
     """Everything a run is made of: the scene (with its parameters) and the method choices.
@@ -31,6 +33,12 @@ class Model(eqx.Module):
         artificial_cells: layers of artificial cells at each free end (0: none; static).
         cfl_limit: a step with ``dt > cfl_limit h / max(c + |v|)`` is a failure; ``None`` disables
             the check (static).
+        ordering: ``"usl"`` (the talk's, SPEC 2) or ``"musl"`` (static). MUSL (Sulsky, Zhou &
+            Schreyer 1995) re-projects the particles' new momenta to the grid after the particle
+            velocity update and advances positions, corners, traction points and F with those
+            nodal velocities. USL advances them with ``v_i + a_i dt``, which is unbounded where a
+            node has just received a tiny mass but a finite force (a particle entering a new cell
+            next to a traction or, for SPQ, any internal force through ``S_i'``).
     """
 
     scene: AbstractScene
@@ -38,6 +46,11 @@ class Model(eqx.Module):
     transfer: AbstractTransfer
     artificial_cells: int = eqx.field(static=True, default=0)
     cfl_limit: float | None = eqx.field(static=True, default=1.0)
+    ordering: str = eqx.field(static=True, default="usl")
+
+    def __check_init__(self):
+        if self.ordering not in ORDERINGS:
+            raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
 
 
 class Setup(eqx.Module):
@@ -166,8 +179,16 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         a = jnp.where(s.walls[:, None], 0.0, a)
     v_new = v_n + dt * a
 
-    # 4. Particles.
+    # 4. Particles. (MUSL: then the nodal velocity is re-projected from the new particle momenta.)
     v_p, C = transfer.update(grid, stencil, v, a, v_new, dt)
+    if model.ordering == "musl":
+        momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v_p, C, m))
+        if s.layer is not None:
+            v_a, C_a = layer.extrapolate(v_p), layer.mean(C) if transfer.affine else None
+            momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
+        v_new = jnp.where(active[:, None], momentum / jnp.where(active, mass_all, 1.0)[:, None], 0.0)
+        if s.walls is not None:
+            v_new = jnp.where(s.walls[:, None], 0.0, v_new)
     x_p = x + dt * jnp.einsum("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
 
     # 5. Kinematics, 6. constitutive update.

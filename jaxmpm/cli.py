@@ -53,6 +53,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--artificial-cells", type=int, default=0, metavar="N", help="layers at each free end")
     run.add_argument("--transfer", default="flip", choices=["flip", "pic", "apic"])
+    run.add_argument(
+        "--ordering",
+        default="usl",
+        choices=["usl", "musl"],
+        help="usl: the talk's (default); musl: re-project nodal velocities before kinematics",
+    )
     run.add_argument("--dt", type=float, required=True, help="time step (> 0)")
     run.add_argument("--steps", type=int, required=True, help="number of steps (>= 0)")
     run.add_argument(
@@ -156,6 +162,7 @@ def _cmd_run(args) -> int:
             transfer=transfer,
             artificial_cells=args.artificial_cells,
             cfl_limit=cfl,
+            ordering=args.ordering,
         )
     except ValueError as e:
         raise UsageError(str(e)) from None
@@ -179,6 +186,7 @@ def _cmd_run(args) -> int:
             interpolator=args.interpolator,
             transfer=args.transfer,
             artificial_cells=args.artificial_cells,
+            ordering=args.ordering,
             dt=args.dt,
             steps=args.steps,
             t=float(st.t),

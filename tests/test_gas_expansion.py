@@ -30,9 +30,10 @@ def test_boundary_cells_five_eighths(interpolator, transfer):
     np.testing.assert_array_equal(np.asarray(sol.body.boundary), expected != 1)
 
 
+@pytest.mark.parametrize("ordering", ["usl", "musl"])
 @pytest.mark.parametrize("layers", [1, 2])
-def test_artificial_cells_make_first_step_exact(interpolator, transfer, layers):
-    _, sol = first_step(interpolator, transfer, artificial_cells=layers)
+def test_artificial_cells_make_first_step_exact(interpolator, transfer, layers, ordering):
+    _, sol = first_step(interpolator, transfer, artificial_cells=layers, ordering=ordering)
     growth = (np.asarray(sol.state.F[:, 0, 0]) - 1.0) / (BETA * DT)
     np.testing.assert_allclose(growth, np.ones(6), rtol=TOL, atol=0)
 
