@@ -7,6 +7,7 @@ first (the CLI, experiments, notebooks and tests do).
 from importlib.metadata import PackageNotFoundError, version
 
 from . import metrics as metrics
+from . import sensitivity as sensitivity
 from . import status as status
 from ._simulate import (
     SaveAt as SaveAt,
@@ -61,6 +62,8 @@ from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
 from .scenes import GasExpansion as GasExpansion
 from .scenes import VibratingBar as VibratingBar
+from .sensitivity import continuous_parameters as continuous_parameters
+from .sensitivity import gradient as gradient
 from .transfers import APIC as APIC
 from .transfers import FLIP as FLIP
 from .transfers import PIC as PIC

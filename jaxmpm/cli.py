@@ -9,6 +9,7 @@ import json
 import math
 import re
 import sys
+import time
 
 RUN_JSON_ERRORS = (
     "F_max_rel",
@@ -68,6 +69,11 @@ def _parser() -> argparse.ArgumentParser:
         help="fail a step with dt > X h / max(c + |v|); 'none' disables (default 1.0)",
     )
     run.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    run.add_argument(
+        "--grad",
+        metavar="NAME[,NAME...]",
+        help="add d(F_rms_rel)/d(NAME) for continuous parameters (scene parameters, h, dt)",
+    )
 
     st = sub.add_parser("study", help="run a study and write its figures and tables")
     st.add_argument("name", choices=["talk"], help="talk: the 2013 MPM workshop comparison")
@@ -151,6 +157,13 @@ def _cmd_run(args) -> int:
             cfl = float(args.cfl_limit)
         except ValueError:
             raise UsageError(f"--cfl-limit must be a number or 'none', got {args.cfl_limit!r}") from None
+    names = None
+    if args.grad is not None:
+        names = [n for n in args.grad.split(",") if n]
+        try:
+            jm.sensitivity.check_names(scene, names)
+        except ValueError as e:
+            raise UsageError(f"--grad: {e}") from None
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
     try:
@@ -168,6 +181,26 @@ def _cmd_run(args) -> int:
         raise UsageError(str(e)) from None
     err = jm.errors(scene, sol.state, sol.body)
     diag = jm.diagnostics(scene, sol.state, sol.body)
+    grad = grad_s = None
+    if names is not None:
+        t0 = time.perf_counter()
+        try:
+            g = jm.gradient(
+                scene,
+                interp,
+                names,
+                dt=args.dt,
+                steps=args.steps,
+                transfer=transfer,
+                artificial_cells=args.artificial_cells,
+                cfl_limit=cfl,
+                ordering=args.ordering,
+                checkpoint=True,
+            )
+        except ValueError as e:
+            raise UsageError(f"--grad: {e}") from None
+        grad = {n: float(g[n]) for n in names}
+        grad_s = time.perf_counter() - t0
     params = {
         k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
         for k, v in scene.parameters().items()
@@ -198,6 +231,9 @@ def _cmd_run(args) -> int:
             wall_s=wall_s,
             compile_s=compile_s,
         )
+        if grad is not None:
+            out["grad"] = grad
+            out["grad_s"] = grad_s
         print(json.dumps(out))
         return 0
     print(
@@ -218,6 +254,12 @@ def _cmd_run(args) -> int:
         print(row)
     print("errors: " + "  ".join(f"{k}={_scalar(v):.4g}" for k, v in err.items() if v is not None))
     print("diagnostics: " + "  ".join(f"{k}={float(v):.6g}" for k, v in diag.items()))
+    if grad is not None:
+        print(
+            "d(F_rms_rel)/d: "
+            + "  ".join(f"{k}={v:.10g}" for k, v in grad.items())
+            + f"  (grad_s={grad_s:.3f})"
+        )
     print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
     return 0
 

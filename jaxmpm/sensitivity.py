@@ -1,0 +1,136 @@
+"""Derivatives of a run's outcome with respect to its continuous inputs.
+
+``jax.grad``, ``jax.jacfwd`` and ``jax.jvp`` work on ``simulate`` directly: every continuous input
+(the scene's float fields, the grid spacing ``h`` and the time step ``dt``) reaches the step as a
+traced array. This module adds the bookkeeping a study needs: which names are differentiable, and
+the gradient of a named error with respect to named parameters.
+
+What the derivative means. A run is piecewise smooth in its parameters. Hat functions have kinks
+at nodes, so wherever a query point (a particle centre, a GIMP or CPDI domain edge, an MPQ corner,
+a traction point) sits exactly on a node, or crosses one during the run, the outcome has a kink.
+Between kinks, ``jax.grad`` is the exact derivative of the smooth piece the parameters lie in. At
+a point exactly on a node, the cell to its right is used (``floor``), so the derivative is the
+one-sided one from that side. In a central difference, kinks show up as steps whose width shrinks
+with the difference step. The gradient tests therefore use generic parameter values, where no
+query point lies within the difference step of a node. ``h`` scales the whole problem at fixed
+cell count (particles, grid and domain together), so at t = 0 every query point keeps its place
+relative to the nodes. ``dt`` is taken at a fixed number of steps, so the final time
+``steps * dt`` moves with it, and errors are measured against the exact solution at that time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import equinox as eqx
+import jax
+
+from ._simulate import Solution, simulate
+from ._util import as_float
+from .interpolators import AbstractInterpolator
+from .metrics import errors
+from .scenes import AbstractScene
+
+
+def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
+    """The names a gradient can be taken with respect to: the scene's float parameters and ``dt``."""
+    cls = scene if isinstance(scene, type) else type(scene)
+    return tuple(k for k, v in cls.parameters().items() if isinstance(v, float)) + ("dt",)
+
+
+def check_names(scene: AbstractScene, names: Sequence[str]) -> None:
+    """Raise ``ValueError`` unless every name is a continuous parameter of ``scene`` (or ``dt``)."""
+    allowed = continuous_parameters(scene)
+    structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
+    for name in names:
+        if name in structural:
+            raise ValueError(
+                f"{name} is structural (an integer), so it has no gradient; "
+                f"differentiable parameters of {scene.name}: {', '.join(allowed)}"
+            )
+        if name not in allowed:
+            raise ValueError(f"unknown parameter {name!r} for a gradient; allowed: {', '.join(allowed)}")
+    if not names:
+        raise ValueError(f"name at least one parameter; allowed: {', '.join(allowed)}")
+
+
+def objective(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    names: Sequence[str],
+    *,
+    dt,
+    steps: int,
+    error: str | Callable[[AbstractScene, Solution], jax.Array] = "F_rms_rel",
+    **simulate_kwargs,
+) -> Callable[[dict[str, jax.Array]], jax.Array]:
+    """A function ``{name: value} -> scalar`` of the named parameters, for ``jax.grad`` and friends.
+
+    Args:
+        scene: the scene; parameters not named keep its values.
+        interpolator: the interpolator.
+        names: parameters to expose (scene float fields and ``dt``).
+        dt: the time step (used unless ``"dt"`` is named).
+        steps: number of steps.
+        error: a key of ``jaxmpm.errors`` or a function ``(scene, solution) -> scalar``.
+        **simulate_kwargs: passed to ``simulate`` (transfer, artificial_cells, checkpoint, ...).
+
+    Raises:
+        ValueError: an unknown or structural name, before anything is traced.
+    """
+    check_names(scene, names)
+    scene_names = [n for n in names if n != "dt"]
+    if isinstance(error, str):
+        probe = jax.eval_shape(lambda: errors(scene, *_probe(scene)))
+        if error not in probe or probe[error] is None:
+            raise ValueError(f"error must be one of the finite errors of {scene.name}: {sorted(probe)}")
+
+    def f(values: dict[str, jax.Array]) -> jax.Array:
+        where = lambda s: [getattr(s, n) for n in scene_names]
+        sc = eqx.tree_at(where, scene, [values[n] for n in scene_names])
+        step = values["dt"] if "dt" in values else dt
+        sol = simulate(sc, interpolator, dt=step, steps=steps, **simulate_kwargs)
+        if callable(error):
+            return error(sc, sol)
+        return errors(sc, sol.state, sol.body)[error]
+
+    return f
+
+
+def _probe(scene):
+    from ._step import Model, initial_state, setup
+    from .interpolators import SPQ
+    from .transfers import FLIP
+
+    model = Model(scene, SPQ(), FLIP())
+    s = setup(model)
+    return initial_state(model, s), s.body
+
+
+def gradient(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    names: Sequence[str],
+    *,
+    dt,
+    steps: int,
+    error: str | Callable = "F_rms_rel",
+    mode: str = "reverse",
+    **simulate_kwargs,
+) -> dict[str, jax.Array]:
+    """The derivative of a run's error with respect to each named parameter.
+
+    Args:
+        scene, interpolator, names, dt, steps, error, simulate_kwargs: as for ``objective``.
+        mode: ``"reverse"`` (``jax.grad``; pass ``checkpoint=True`` for long runs) or ``"forward"``
+            (``jax.jacfwd``, memory independent of the step count, cost growing with ``len(names)``).
+
+    Returns:
+        ``{name: d(error)/d(name)}``.
+    """
+    if mode not in ("reverse", "forward"):
+        raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")
+    f = objective(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
+    values = {n: as_float(dt if n == "dt" else getattr(scene, n)) for n in names}
+    d = jax.grad(f) if mode == "reverse" else jax.jacfwd(f)
+    return d(values)
