@@ -1,0 +1,114 @@
+"""Reverse mode with bounded memory: time and memory of jax.grad through long runs.
+
+The problem: the gas expansion with 1,000 particles (500 cells, ppc = 2, h = 2 mm), MPQ with
+artificial cells, FLIP, USL, dt = 0.1 h / c0, beta = 2 /s; the objective is the final RMS relative
+F error. For each step count it measures, each configuration in its own process:
+
+- forward: compile time and run time of the jitted objective;
+- reverse, checkpointed (checkpoint=True: blocks of ceil(sqrt(steps / 8)) steps): compile and run
+  time of jax.grad;
+- peak resident memory of that process (ru_maxrss, includes Python, JAX and XLA themselves), and
+  XLA's own account of the buffers the compiled computation needs (memory_analysis: arguments,
+  outputs, temporaries);
+- for plain (uncheckpointed) reverse mode, XLA's buffer account only: at 100,000 steps it would
+  need tens of GB, so it is compiled, not run.
+
+Usage: python experiments/grad_memory.py [--small] [--out results/grad_memory.csv]
+"""
+
+import csv
+import json
+import pathlib
+import resource
+import subprocess
+import sys
+import time
+
+STEPS = (1_000, 10_000, 100_000)
+SMALL_STEPS = (200, 1_000)
+
+
+def objective(steps: int, checkpoint):
+    import jaxmpm as jm
+
+    h = 0.002
+    dt = 0.1 * h / (1.4 * 2.0e5) ** 0.5
+
+    def f(beta):
+        scene = jm.GasExpansion(cells=500, ppc=2, h=h, beta=beta, pad=60)
+        sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps, artificial_cells=1, checkpoint=checkpoint)
+        return jm.errors(scene, sol.state, sol.body)["F_rms_rel"]
+
+    return f
+
+
+def xla_bytes(compiled) -> int:
+    m = compiled.memory_analysis()
+    return int(m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes)
+
+
+def one(mode: str, steps: int) -> dict:
+    """Measure one configuration in this process: mode is forward, reverse or plain."""
+    import jax
+    import jax.numpy as jnp
+
+    jax.config.update("jax_enable_x64", True)
+    beta = jnp.asarray(2.0)
+    if mode == "forward":
+        fn = jax.jit(objective(steps, False))
+    elif mode == "reverse":
+        fn = jax.jit(jax.grad(objective(steps, True)))
+    else:
+        fn = jax.jit(jax.grad(objective(steps, False)))
+    t0 = time.perf_counter()
+    compiled = fn.lower(beta).compile()
+    compile_s = time.perf_counter() - t0
+    out = dict(mode=mode, steps=steps, compile_s=compile_s, xla_bytes=xla_bytes(compiled))
+    if mode != "plain":
+        t0 = time.perf_counter()
+        value = float(jax.block_until_ready(compiled(beta)))
+        out["run_s"] = time.perf_counter() - t0
+        out["value"] = value
+        out["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return out
+
+
+def main(small: bool = False, out: str = "results/grad_memory.csv") -> list[dict]:
+    rows = []
+    for steps in SMALL_STEPS if small else STEPS:
+        for mode in ("forward", "reverse", "plain"):
+            proc = subprocess.run(
+                [sys.executable, __file__, "--one", mode, str(steps)],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        fwd, rev, plain = rows[-3:]
+        print(
+            f"steps={steps:>7}: forward {fwd['run_s']:.2f} s (compile {fwd['compile_s']:.2f} s), "
+            f"reverse {rev['run_s']:.2f} s = {rev['run_s'] / fwd['run_s']:.2f}x forward "
+            f"(compile {rev['compile_s']:.2f} s); XLA buffers: forward {fwd['xla_bytes'] / 1e6:.1f} MB, "
+            f"checkpointed reverse {rev['xla_bytes'] / 1e6:.1f} MB, "
+            f"plain reverse {plain['xla_bytes'] / 1e6:.1f} MB; peak RSS forward "
+            f"{fwd['peak_rss_bytes'] / 1e6:.0f} MB, reverse {rev['peak_rss_bytes'] / 1e6:.0f} MB",
+            flush=True,
+        )
+    path = pathlib.Path(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    keys = sorted({k for r in rows for k in r})
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {path}")
+    return rows
+
+
+if __name__ == "__main__":
+    if "--one" in sys.argv:
+        i = sys.argv.index("--one")
+        print(json.dumps(one(sys.argv[i + 1], int(sys.argv[i + 2]))))
+    else:
+        out = sys.argv[sys.argv.index("--out") + 1] if "--out" in sys.argv else "results/grad_memory.csv"
+        main(small="--small" in sys.argv, out=out)

@@ -1,0 +1,16 @@
+"""d(F error)/d(beta) and d(F error)/d(h) for every interpolator, with and without artificial cells.
+
+Usage: python experiments/sensitivity.py [OUT_DIR] [--small] [--musl]   (default OUT_DIR: results/sensitivity)
+"""
+
+import sys
+
+from jaxmpm.studies import sensitivity
+
+if __name__ == "__main__":
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    sensitivity.main(
+        out=args[0] if args else "results/sensitivity",
+        small="--small" in sys.argv,
+        ordering="musl" if "--musl" in sys.argv else "usl",
+    )
