@@ -6,6 +6,7 @@ first (the CLI, experiments, notebooks and tests do).
 
 from importlib.metadata import PackageNotFoundError, version
 
+from . import long_run as long_run
 from . import metrics as metrics
 from . import sensitivity as sensitivity
 from . import status as status

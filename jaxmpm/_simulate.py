@@ -11,7 +11,7 @@ from jaxtyping import Array, Float
 
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
-from ._step import Model, initial_state, setup, step
+from ._step import Model, Setup, initial_state, setup, step
 from ._util import as_float
 from .interpolators import AbstractInterpolator
 from .particles import Body, State
@@ -118,17 +118,39 @@ def checkpoint_block(checkpoint: bool | int | None, steps: int) -> int | None:
     return checkpoint
 
 
-def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | None):
-    s = setup(model)
-    state0 = initial_state(model, s)
+def advance(
+    model: Model,
+    s: Setup,
+    state: State,
+    dt: Array,
+    steps: int,
+    saveat: SaveAt,
+    checkpoint: int | None = None,
+    limit: Array | None = None,
+):
+    """Take ``steps`` steps from ``state`` in one scan (the loop every driver shares).
+
+    Args:
+        model, s: the run and what it derives once.
+        state: the state to start from.
+        dt: the time step.
+        steps: how many steps (static).
+        saveat: with ``every=k``, the named fields after every k-th step are returned.
+        checkpoint: block length of checkpointed reverse mode, or ``None``.
+        limit: steps with ``state.step >= limit`` are masked (not taken), so that every chunk of a
+            chunked run has the same length and compiles once; ``None`` for no limit.
+
+    Returns:
+        ``(state, saved)``, ``saved`` a dict of fields with a leading axis ``steps // k``, or ``None``.
+    """
 
     def one(state, _):
-        return step(model, s, state, dt), None
+        return step(model, s, state, dt, limit), None
 
     def scan(state, n):
         return jax.lax.scan(one, state, None, length=n)[0] if n > 0 else state
 
-    def advance(state, n):
+    def run(state, n):
         # Reverse mode through a scan stores every step's residuals. With a block of b steps under
         # jax.checkpoint, only the states at block ends are stored; the backward pass recomputes one
         # block at a time, so memory goes as (n / b) states + b steps of residuals, for the price of
@@ -141,20 +163,28 @@ def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | 
         return scan(state, rem)
 
     if saveat.every is None:
-        return Solution(advance(state0, steps), s.body, None, None)
-
+        return run(state, steps), None
     k = saveat.every
     n_out, rem = divmod(steps, k)
 
     def block(state, _):
-        state = advance(state, k)
+        state = run(state, k)
         return state, _save(state, saveat.fields)
 
-    state, saved = jax.lax.scan(block, state0, None, length=n_out)
+    state, saved = jax.lax.scan(block, state, None, length=n_out)
+    return run(state, rem), saved
+
+
+def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | None):
+    s = setup(model)
+    state0 = initial_state(model, s)
+    state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
+    if saved is None:
+        return Solution(state, s.body, None, None)
     first = _save(state0, saveat.fields)
     history = {name: jnp.concatenate([first[name][None], saved[name]]) for name in first}
-    ts = jnp.arange(n_out + 1, dtype=dt.dtype) * (k * dt)
-    return Solution(advance(state, rem), s.body, ts, history)
+    ts = jnp.arange(steps // saveat.every + 1, dtype=dt.dtype) * (saveat.every * dt)
+    return Solution(state, s.body, ts, history)
 
 
 _run_jit = eqx.filter_jit(_run)

@@ -121,8 +121,10 @@ def _particle_corners(state: State, body: Body):
     return None if state.corners is None else state.corners[body.corner_ids]
 
 
-def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
-    """One USL step. A step that fails a check is not taken: the state stays, its status records it."""
+def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Array | None = None) -> State:
+    """One USL (or MUSL) step. A step that fails a check is not taken: the state stays, its status
+    records it. With ``limit``, a step from ``state.step >= limit`` is not taken either (masking the
+    tail of a fixed-length chunk)."""
     scene, interp, transfer = model.scene, model.interpolator, model.transfer
     grid, body, mat = s.grid, s.body, s.material
     x, v, F, t = state.x, state.v, state.F, state.t
@@ -238,7 +240,11 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""]) -> State:
         checks.append((st_bits.SCENE_DATA, _merge(pre_checks, st_bits.SCENE_DATA, body.n)))
     bits, particle = st_bits.combine(checks)
 
-    healthy = state.status == 0
+    if limit is not None:  # a masked step is neither taken nor checked
+        bits = jnp.where(state.step < limit, bits, 0)
+        healthy = (state.status == 0) & (state.step < limit)
+    else:
+        healthy = state.status == 0
     ok = healthy & (bits == 0)
     kept = tree_where(ok, new, state)
     first = healthy & (bits != 0)

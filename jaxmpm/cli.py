@@ -69,11 +69,20 @@ def _parser() -> argparse.ArgumentParser:
         help="fail a step with dt > X h / max(c + |v|); 'none' disables (default 1.0)",
     )
     run.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    run.add_argument("--out", metavar="FILE", help="run in chunks and save the run to FILE (.npz)")
+    run.add_argument("--checkpoint-every", type=int, metavar="N", help="with --out: save every N chunks")
+    run.add_argument("--chunk", type=int, default=1000, metavar="STEPS", help="with --out: steps per chunk")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar (with --out)")
     run.add_argument(
         "--grad",
         metavar="NAME[,NAME...]",
         help="add d(F_rms_rel)/d(NAME) for continuous parameters (scene parameters, h, dt)",
     )
+
+    rs = sub.add_parser("resume", help="continue a run saved with `run --out FILE`")
+    rs.add_argument("file", help="the saved run (.npz)")
+    rs.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    rs.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     st = sub.add_parser("study", help="run a study and write its figures and tables")
     st.add_argument("name", choices=["talk"], help="talk: the 2013 MPM workshop comparison")
@@ -145,7 +154,6 @@ def _cmd_scenes(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    import numpy as np
 
     import jaxmpm as jm
 
@@ -166,41 +174,83 @@ def _cmd_run(args) -> int:
             raise UsageError(f"--grad: {e}") from None
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
+    settings = dict(
+        transfer=transfer, artificial_cells=args.artificial_cells, cfl_limit=cfl, ordering=args.ordering
+    )
+    if args.checkpoint_every is not None and args.out is None:
+        raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
     try:
-        sol, compile_s, wall_s = jm.simulate_timed(
-            scene,
-            interp,
-            dt=args.dt,
-            steps=args.steps,
-            transfer=transfer,
-            artificial_cells=args.artificial_cells,
-            cfl_limit=cfl,
-            ordering=args.ordering,
-        )
+        if args.out is None:
+            sol, compile_s, wall_s = jm.simulate_timed(
+                scene, interp, dt=args.dt, steps=args.steps, **settings
+            )
+        else:
+            sol, compile_s, wall_s = jm.long_run.run_timed(
+                scene,
+                interp,
+                dt=args.dt,
+                steps=args.steps,
+                chunk=args.chunk,
+                out=args.out,
+                checkpoint_every=args.checkpoint_every,
+                progress=False if args.no_progress else None,
+                **settings,
+            )
     except ValueError as e:
         raise UsageError(str(e)) from None
-    err = jm.errors(scene, sol.state, sol.body)
-    diag = jm.diagnostics(scene, sol.state, sol.body)
     grad = grad_s = None
     if names is not None:
         t0 = time.perf_counter()
         try:
-            g = jm.gradient(
-                scene,
-                interp,
-                names,
-                dt=args.dt,
-                steps=args.steps,
-                transfer=transfer,
-                artificial_cells=args.artificial_cells,
-                cfl_limit=cfl,
-                ordering=args.ordering,
-                checkpoint=True,
-            )
+            g = jm.gradient(scene, interp, names, dt=args.dt, steps=args.steps, checkpoint=True, **settings)
         except ValueError as e:
             raise UsageError(f"--grad: {e}") from None
         grad = {n: float(g[n]) for n in names}
         grad_s = time.perf_counter() - t0
+    run = dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        transfer=args.transfer,
+        artificial_cells=args.artificial_cells,
+        ordering=args.ordering,
+        dt=args.dt,
+        steps=args.steps,
+    )
+    if args.out is not None:
+        run["out"] = str(args.out)
+    return _report(run, scene, sol, compile_s, wall_s, grad, grad_s, args.json)
+
+
+def _cmd_resume(args) -> int:
+    import jaxmpm as jm
+
+    try:
+        sol, compile_s, wall_s, meta = jm.long_run.resume_timed(
+            args.file, progress=False if args.no_progress else None
+        )
+    except (FileNotFoundError, ValueError) as e:
+        raise UsageError(str(e)) from None
+    scene = jm.SCENES[meta["scene"]](**meta["params"])
+    run = dict(
+        scene=meta["scene"],
+        interpolator=meta["interpolator"]["name"],
+        transfer=meta["transfer"],
+        artificial_cells=meta["artificial_cells"],
+        ordering=meta["ordering"],
+        dt=meta["dt"],
+        steps=meta["steps"],
+        out=str(args.file),
+    )
+    return _report(run, scene, sol, compile_s, wall_s, None, None, args.json)
+
+
+def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: bool) -> int:
+    import numpy as np
+
+    import jaxmpm as jm
+
+    err = jm.errors(scene, sol.state, sol.body)
+    diag = jm.diagnostics(scene, sol.state, sol.body)
     params = {
         k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
         for k, v in scene.parameters().items()
@@ -213,15 +263,9 @@ def _cmd_run(args) -> int:
         F=_floats(st.F[:, 0, 0]),
         sigma=_floats(st.sigma[:, 0, 0]),
     )
-    if args.json:
+    if as_json:
         out = dict(
-            scene=args.scene,
-            interpolator=args.interpolator,
-            transfer=args.transfer,
-            artificial_cells=args.artificial_cells,
-            ordering=args.ordering,
-            dt=args.dt,
-            steps=args.steps,
+            **run,
             t=float(st.t),
             params=params,
             particles=particles,
@@ -236,10 +280,7 @@ def _cmd_run(args) -> int:
             out["grad_s"] = grad_s
         print(json.dumps(out))
         return 0
-    print(
-        f"{args.scene}  interpolator={args.interpolator}  transfer={args.transfer}  "
-        f"artificial_cells={args.artificial_cells}  dt={args.dt:g}  steps={args.steps}  t={float(st.t):.6g}"
-    )
+    print("  ".join(f"{k}={v}" for k, v in run.items()) + f"  t={float(st.t):.6g}")
     print("params: " + "  ".join(f"{k}={v}" for k, v in params.items()))
     ex = jm.metrics.exact_fields(scene, sol.body, st.t)
     head = f"{'p':>4} {'X':>12} {'x':>12} {'v':>12} {'F':>12} {'sigma':>13}"
@@ -280,16 +321,18 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = _parser().parse_args(argv)
-        return {"scenes": _cmd_scenes, "run": _cmd_run, "study": _cmd_study}[args.command](args)
+        return {"scenes": _cmd_scenes, "run": _cmd_run, "resume": _cmd_resume, "study": _cmd_study}[
+            args.command
+        ](args)
     except UsageError as e:
         print(f"jaxmpm: error: {e}", file=sys.stderr)
         return 2
     except SimulationError as e:
-        msg = str(e).split(" The state of the last good step")[0]
+        head, _, tail = str(e).partition(" The state of the last good step")
+        saved = tail.partition("error.solution.")[2].strip()  # long runs add where they were saved
         last = int(e.solution.state.step)
-        print(
-            f"{msg} The last good state is step {last}; rerun with --steps {last} to see it.", file=sys.stderr
-        )
+        hint = saved or f"Rerun with --steps {last} to see the last good state."
+        print(f"{head} The last good state is step {last}. {hint}", file=sys.stderr)
         return 3
 
 

@@ -27,3 +27,21 @@ def interpolator(request):
 @pytest.fixture(params=list(TRANSFERS), ids=list(TRANSFERS))
 def transfer(request):
     return TRANSFERS[request.param]
+
+
+def _memory_maps() -> int:
+    try:
+        with open("/proc/self/maps") as f:
+            return sum(1 for _ in f)
+    except OSError:  # not Linux: no such limit to watch
+        return 0
+
+
+@pytest.fixture(autouse=True)
+def _release_compiled_programs():
+    """Each compiled XLA CPU program holds ~265 memory maps, and Linux allows 65,530 per process
+    (vm.max_map_count): past ~245 live programs, XLA's JIT segfaults while compiling the next one.
+    The suite compiles more than that, so it drops JAX's caches when the process nears the limit."""
+    yield
+    if _memory_maps() > 40_000:
+        jax.clear_caches()
