@@ -221,8 +221,19 @@ def _finish(sol: Solution, dt, throw: bool) -> Solution:
 
 
 def _prepare(
-    scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering, checkpoint
+    scene,
+    interpolator,
+    *,
+    dt,
+    steps,
+    transfer=None,
+    artificial_cells=0,
+    saveat=None,
+    cfl_limit=1.0,
+    ordering="usl",
+    checkpoint=False,
 ):
+    """Validate a run's arguments (before anything is traced) and build its ``Model``."""
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint)
@@ -275,37 +286,36 @@ def simulate(
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
     model, dt_arr, saveat = _prepare(
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering, checkpoint
+        scene,
+        interpolator,
+        dt=dt,
+        steps=steps,
+        transfer=transfer,
+        artificial_cells=artificial_cells,
+        saveat=saveat,
+        cfl_limit=cfl_limit,
+        ordering=ordering,
+        checkpoint=checkpoint,
     )
     sol = _run_jit(model, dt_arr, steps, saveat, checkpoint_block(checkpoint, steps))
     return _finish(sol, dt, throw)
 
 
 def simulate_timed(
-    scene: AbstractScene,
-    interpolator: AbstractInterpolator,
-    *,
-    dt,
-    steps: int,
-    transfer: AbstractTransfer | None = None,
-    artificial_cells: int = 0,
-    saveat: SaveAt | None = None,
-    cfl_limit: float | None = 1.0,
-    ordering: str = "usl",
-    checkpoint: bool | int = False,
-    throw: bool = True,
+    scene: AbstractScene, interpolator: AbstractInterpolator, *, throw: bool = True, **kwargs
 ) -> tuple[Solution, float, float]:
     """``simulate`` with compile time and run time measured apart (ahead-of-time compilation).
+
+    Takes the same arguments as ``simulate``.
 
     Returns:
         ``(solution, compile_s, wall_s)``: ``compile_s`` covers tracing, lowering and XLA
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
-    model, dt_arr, saveat = _prepare(
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering, checkpoint
-    )
+    model, dt_arr, saveat = _prepare(scene, interpolator, **kwargs)
+    dt, steps = kwargs["dt"], kwargs["steps"]
     t0 = time.perf_counter()
-    block = checkpoint_block(checkpoint, steps)
+    block = checkpoint_block(kwargs.get("checkpoint", False), steps)
     compiled = _run_jit.lower(model, dt_arr, steps, saveat, block).compile()
     t1 = time.perf_counter()
     sol = jax.block_until_ready(compiled(model, dt_arr, steps, saveat, block))

@@ -284,7 +284,15 @@ def run_timed(
         if out is None:
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
     model, dt_arr, saveat = _prepare(
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering, False
+        scene,
+        interpolator,
+        dt=dt,
+        steps=steps,
+        transfer=transfer,
+        artificial_cells=artificial_cells,
+        saveat=saveat,
+        cfl_limit=cfl_limit,
+        ordering=ordering,
     )
     if saveat.every is not None and chunk % saveat.every:
         raise ValueError(f"chunk must be a multiple of saveat.every, got chunk={chunk}, every={saveat.every}")
@@ -351,14 +359,13 @@ def _load(path: pathlib.Path):
     model, dt_arr, saveat = _prepare(
         scene,
         interp,
-        meta["dt"],
-        meta["steps"],
-        TRANSFERS[meta["transfer"]](),
-        meta["artificial_cells"],
-        SaveAt(every=meta["saveat"]["every"], fields=tuple(meta["saveat"]["fields"])),
-        meta["cfl_limit"],
-        meta["ordering"],
-        False,
+        dt=meta["dt"],
+        steps=meta["steps"],
+        transfer=TRANSFERS[meta["transfer"]](),
+        artificial_cells=meta["artificial_cells"],
+        saveat=SaveAt(every=meta["saveat"]["every"], fields=tuple(meta["saveat"]["fields"])),
+        cfl_limit=meta["cfl_limit"],
+        ordering=meta["ordering"],
     )
     fresh, body = _start(model)
     fields = {}

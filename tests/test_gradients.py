@@ -32,7 +32,7 @@ def fd5(f, values, name, rel=FD_REL):
     return (8 * (ev(1) - ev(-1)) - (ev(2) - ev(-2))) / (12 * d)
 
 
-def check_against_fd(scene, interpolator, *, dt, steps, **kw):
+def assert_matches_finite_differences(scene, interpolator, *, dt, steps, **kw):
     names = jm.continuous_parameters(scene)
     g = jm.gradient(scene, interpolator, names, dt=dt, steps=steps, **kw)
     f = jax.jit(jm.sensitivity.objective(scene, interpolator, names, dt=dt, steps=steps, **kw))
@@ -57,16 +57,16 @@ def test_gas_gradients_match_finite_differences(name, transfer):
         pytest.skip(
             "kink-dense: APIC makes node 0 exactly still, cpGIMP's edge then sits on it (pinned below)"
         )
-    check_against_fd(GAS, INTERPOLATORS[name], dt=0.93e-5, steps=25, transfer=transfer)
+    assert_matches_finite_differences(GAS, INTERPOLATORS[name], dt=0.93e-5, steps=25, transfer=transfer)
 
 
 @pytest.mark.parametrize("name", [n for n in INTERPOLATORS if n != "cpgimp"])
 def test_gas_gradients_with_artificial_cells(name):
-    check_against_fd(GAS, INTERPOLATORS[name], dt=0.93e-5, steps=25, artificial_cells=1)
+    assert_matches_finite_differences(GAS, INTERPOLATORS[name], dt=0.93e-5, steps=25, artificial_cells=1)
 
 
 def test_bar_gradients_match_finite_differences(interpolator):
-    check_against_fd(BAR, interpolator, dt=1.1e-4, steps=40)
+    assert_matches_finite_differences(BAR, interpolator, dt=1.1e-4, steps=40)
 
 
 def test_kink_dense_case_is_pinned():

@@ -17,15 +17,10 @@ import numpy as np
 
 import jaxmpm as jm
 
+from ._methods import METHODS
+
 DT = 1.0e-5
 STEPS = 125  # t = 0.00125, the talk's later time
-METHODS = {
-    "SPQ": jm.SPQ,
-    "uGIMP": jm.GIMP,
-    "cpGIMP": lambda: jm.GIMP(contiguous=True),
-    "CPDI": jm.CPDI,
-    "MPQ": jm.MPQ,
-}
 
 
 def sweep(

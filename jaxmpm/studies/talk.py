@@ -17,15 +17,10 @@ import numpy as np
 
 import jaxmpm as jm
 
+from ._methods import METHODS
+
 TIMES = (1.0e-4, 1.25e-3)
 DT = 1.0e-5
-METHODS = {
-    "SPQ": jm.SPQ,
-    "uGIMP": jm.GIMP,
-    "cpGIMP": lambda: jm.GIMP(contiguous=True),
-    "CPDI": jm.CPDI,
-    "MPQ": jm.MPQ,
-}
 COLUMNS = (
     "method",
     "artificial_cells",
