@@ -167,10 +167,11 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
         f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
         pre_checks.append((st_bits.SCENE_DATA, ~jnp.isfinite(b).all(1)))
     if state.x_traction is not None:
-        tr = jnp.stack([tv for tv in scene.traction(t) if tv is not None])  # (k, dim)
+        tractions = scene.traction(t)  # (left, right), each None or a vector
+        tr = jnp.stack([tv for tv in tractions if tv is not None])  # (k, dim)
         t_idx, t_s, _ = point_stencil(grid, state.x_traction[:, 0])
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
-        ends = [i for i, tv in zip((0, body.n - 1), scene.traction(t)) if tv is not None]
+        ends = [i for i, tv in zip((0, body.n - 1), tractions) if tv is not None]
         bad_tr = ~jnp.isfinite(tr).all(1)  # reported on the end particle next to the traction
         pre_checks.append(
             (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr))
