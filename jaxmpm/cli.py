@@ -11,15 +11,6 @@ import re
 import sys
 import time
 
-RUN_JSON_ERRORS = (
-    "F_max_rel",
-    "F_rms_rel",
-    "F_max_rel_boundary",
-    "F_max_rel_interior",
-    "x_max_abs",
-    "separation_max",
-)
-
 
 class UsageError(Exception):
     """Bad input from the command line: one line, exit status 2."""

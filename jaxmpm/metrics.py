@@ -7,6 +7,29 @@ from jaxtyping import Array, Float
 from .particles import Body, State
 from .scenes import AbstractScene
 
+# The errors against an exact solution (``None`` for a scene without one); the interior ones are also
+# ``None`` for a body with no interior cell (cells <= 2: every particle is in a boundary cell).
+EXACT_ERRORS = (
+    "F_max_rel",
+    "F_rms_rel",
+    "F_max_rel_boundary",
+    "F_rms_rel_boundary",
+    "F_max_rel_interior",
+    "F_rms_rel_interior",
+    "x_max_abs",
+    "x_rms_abs",
+    "v_max_abs",
+    "sigma_max_abs",
+)
+INTERIOR_ERRORS = ("F_max_rel_interior", "F_rms_rel_interior")
+
+
+def available_errors(scene: AbstractScene) -> tuple[str, ...]:
+    """The names ``errors`` gives a number for (not ``None``) on ``scene``."""
+    if scene.exact is None:
+        return ("separation_max",)
+    return ("separation_max",) + tuple(k for k in EXACT_ERRORS if scene.cells > 2 or k not in INTERIOR_ERRORS)
+
 
 def exact_fields(scene: AbstractScene, body: Body, t) -> dict[str, Array] | None:
     """The exact ``x, v, F, sigma`` at every real particle's ``X`` at time ``t`` (or ``None``)."""
@@ -71,19 +94,7 @@ def errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Array | 
     out: dict[str, Array | None] = dict(separation_max=sep)
     ex = exact_fields(scene, body, state.t)
     if ex is None:
-        for k in (
-            "F_max_rel",
-            "F_rms_rel",
-            "F_max_rel_boundary",
-            "F_rms_rel_boundary",
-            "F_max_rel_interior",
-            "F_rms_rel_interior",
-            "x_max_abs",
-            "x_rms_abs",
-            "v_max_abs",
-            "sigma_max_abs",
-        ):
-            out[k] = None
+        out.update(dict.fromkeys(EXACT_ERRORS))
         return out
     F_sq = _sq_rel(state.F, ex["F"], n)
     out["F_max_rel"], out["F_rms_rel"] = _max_rms(F_sq)

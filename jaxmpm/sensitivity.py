@@ -28,7 +28,7 @@ import jax
 from ._simulate import Solution, simulate
 from ._util import as_float
 from .interpolators import AbstractInterpolator
-from .metrics import errors
+from .metrics import available_errors, errors
 from .scenes import AbstractScene
 
 
@@ -80,10 +80,8 @@ def objective(
     """
     check_names(scene, names)
     scene_names = [n for n in names if n != "dt"]
-    if isinstance(error, str):
-        probe = jax.eval_shape(lambda: errors(scene, *_probe(scene)))
-        if error not in probe or probe[error] is None:
-            raise ValueError(f"error must be one of the finite errors of {scene.name}: {sorted(probe)}")
+    if isinstance(error, str) and error not in available_errors(scene):
+        raise ValueError(f"error must be one of the finite errors of {scene.name}: {available_errors(scene)}")
 
     def f(values: dict[str, jax.Array]) -> jax.Array:
         where = lambda s: [getattr(s, n) for n in scene_names]
@@ -95,16 +93,6 @@ def objective(
         return errors(sc, sol.state, sol.body)[error]
 
     return f
-
-
-def _probe(scene):
-    from ._step import Model, initial_state, setup
-    from .interpolators import SPQ
-    from .transfers import FLIP
-
-    model = Model(scene, SPQ(), FLIP())
-    s = setup(model)
-    return initial_state(model, s), s.body
 
 
 def gradient(
