@@ -6,6 +6,7 @@ first (the CLI, experiments, notebooks and tests do).
 
 from importlib.metadata import PackageNotFoundError, version
 
+from . import exact as exact
 from . import long_run as long_run
 from . import metrics as metrics
 from . import sensitivity as sensitivity
@@ -54,6 +55,9 @@ from .materials import (
 from .materials import (
     LinearElastic as LinearElastic,
 )
+from .materials import (
+    NeoHookean as NeoHookean,
+)
 from .metrics import diagnostics as diagnostics
 from .metrics import errors as errors
 from .metrics import separation as separation
@@ -62,6 +66,9 @@ from .particles import State as State
 from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
 from .scenes import GasExpansion as GasExpansion
+from .scenes import Manufactured as Manufactured
+from .scenes import Riemann as Riemann
+from .scenes import VacuumExpansion as VacuumExpansion
 from .scenes import VibratingBar as VibratingBar
 from .sensitivity import continuous_parameters as continuous_parameters
 from .sensitivity import gradient as gradient
@@ -69,6 +76,7 @@ from .transfers import APIC as APIC
 from .transfers import FLIP as FLIP
 from .transfers import PIC as PIC
 from .transfers import AbstractTransfer as AbstractTransfer
+from .viscosity import ArtificialViscosity as ArtificialViscosity
 
 INTERPOLATORS = {
     "spq": SPQ,

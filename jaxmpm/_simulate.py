@@ -11,12 +11,13 @@ from jaxtyping import Array, Float
 
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
-from ._step import Model, Setup, initial_state, setup, step
+from ._step import Model, Setup, initial_state, setup, stable_dt, step
 from ._util import as_float
 from .interpolators import AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
 from .transfers import FLIP, AbstractTransfer
+from .viscosity import ArtificialViscosity
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")
 
@@ -75,6 +76,16 @@ class Solution(eqx.Module):
         )
 
 
+class ToEnd(eqx.Module):
+    """A run to an end time with the CFL-limited step ``cfl h / max_p(c_p + |v_p|)``, recomputed
+    every step; the last step is cut to land exactly on ``t_end``, and steps past it are masked, so a
+    bounded scan (``max_steps`` long) carries it and ``jax.grad`` goes through (``t_end`` and ``cfl``
+    are traced)."""
+
+    t_end: Float[Array, ""] = eqx.field(converter=as_float)
+    cfl: Float[Array, ""] = eqx.field(converter=as_float)
+
+
 class SimulationError(RuntimeError):
     """A run broke down. ``error.solution`` holds everything computed up to the last good step."""
 
@@ -83,15 +94,22 @@ class SimulationError(RuntimeError):
         self.solution = solution
 
 
-def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint):
+def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity):
+    if viscosity is not None and not isinstance(viscosity, ArtificialViscosity):
+        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {viscosity!r}")
     if not isinstance(scene, AbstractScene):
         raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
     if not isinstance(interpolator, AbstractInterpolator):
         raise ValueError(f"interpolator must be one of SPQ(), GIMP(), CPDI(), MPQ(), got {interpolator!r}")
     if not isinstance(transfer, AbstractTransfer):
         raise ValueError(f"transfer must be one of FLIP(), PIC(), APIC(), got {transfer!r}")
-    check_positive("dt", dt)
-    check_int("steps", steps, 0)
+    if isinstance(dt, ToEnd):
+        check_positive("t_end", dt.t_end)
+        check_positive("cfl", dt.cfl)
+        check_int("max_steps", steps, 1)
+    else:
+        check_positive("dt", dt)
+        check_int("steps", steps, 0)
     check_int("artificial_cells", artificial_cells, 0)
     if not isinstance(checkpoint, bool):
         check_int("checkpoint", checkpoint, 1)
@@ -145,7 +163,15 @@ def advance(
     """
 
     def one(state, _):
-        return step(model, s, state, dt, limit), None
+        if not isinstance(dt, ToEnd):
+            return step(model, s, state, dt, limit), None
+        h_dt = stable_dt(model, s, state, dt.cfl)
+        remaining = dt.t_end - state.t
+        last = h_dt >= remaining
+        active = remaining > 0
+        dt_n = jnp.where(active & last, remaining, h_dt)  # past the end: a harmless step, discarded
+        t_new = jnp.where(last, dt.t_end, state.t + dt_n)  # lands on t_end exactly
+        return step(model, s, state, dt_n, limit, active=active, t_new=t_new), None
 
     def scan(state, n):
         return jax.lax.scan(one, state, None, length=n)[0] if n > 0 else state
@@ -169,7 +195,10 @@ def advance(
 
     def block(state, _):
         state = run(state, k)
-        return state, _save(state, saveat.fields)
+        out = _save(state, saveat.fields)
+        if isinstance(dt, ToEnd):
+            out["t"] = state.t
+        return state, out
 
     state, saved = jax.lax.scan(block, state, None, length=n_out)
     return run(state, rem), saved
@@ -179,27 +208,48 @@ def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | 
     s = setup(model)
     state0 = initial_state(model, s)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
+    if isinstance(dt, ToEnd):  # max_steps ran out before t_end: a failure of the run, not of a particle
+        short = (state.status == 0) & (state.t < dt.t_end)
+        state = eqx.tree_at(
+            lambda z: (z.status, z.fail_step),
+            state,
+            (
+                jnp.where(short, st_bits.MAX_STEPS, state.status),
+                jnp.where(short, state.step + 1, state.fail_step),
+            ),
+        )
     if saved is None:
         return Solution(state, s.body, None, None)
     first = _save(state0, saveat.fields)
     history = {name: jnp.concatenate([first[name][None], saved[name]]) for name in first}
-    ts = jnp.arange(steps // saveat.every + 1, dtype=dt.dtype) * (saveat.every * dt)
+    if isinstance(dt, ToEnd):
+        ts = jnp.concatenate([state0.t[None], saved["t"]])
+    else:
+        ts = jnp.arange(steps // saveat.every + 1, dtype=dt.dtype) * (saveat.every * dt)
     return Solution(state, s.body, ts, history)
 
 
 _run_jit = eqx.filter_jit(_run)
 
 
-def _message(sol: Solution, dt: float) -> str:
+def _message(sol: Solution, dt: float | None) -> str:
+    """The breakdown message; ``dt`` is ``None`` for a run to an end time (variable steps)."""
     f = sol.failure()
     p = f["particle"]
-    X = float(sol.body.X[p, 0])
     last = f["step"] - 1
     st = sol.state
     lines = " and ".join(f["quantities"])
+    when = f"t = {f['step'] * dt:.6g}" if dt is not None else f"after t = {float(st.t):.6g}"
+    if p < 0:
+        who = "the run"
+    else:
+        X = float(sol.body.X[p, 0])
+        who = (
+            f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g} "
+            f"at step {last})"
+        )
     return (
-        f"jaxmpm: the run broke down at step {f['step']} (t = {f['step'] * dt:.6g}): particle {p} "
-        f"(X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g} at step {last}): "
+        f"jaxmpm: the run broke down at step {f['step']} ({when}): {who}: "
         f"{lines}. The state of the last good step ({last}) is in error.solution."
     )
 
@@ -207,9 +257,9 @@ def _message(sol: Solution, dt: float) -> str:
 def _finish(sol: Solution, dt, throw: bool) -> Solution:
     if not throw:
         return sol
-    if is_concrete(sol.state.status) and is_concrete(dt):
+    if is_concrete(sol.state.status) and (dt is None or is_concrete(dt)):
         if int(sol.state.status) != 0:
-            raise SimulationError(_message(sol, float(dt)), sol)
+            raise SimulationError(_message(sol, None if dt is None else float(dt)), sol)
         return sol
     return eqx.error_if(
         sol,
@@ -224,51 +274,78 @@ def _prepare(
     scene,
     interpolator,
     *,
-    dt,
-    steps,
+    dt=None,
+    steps=None,
+    t_end=None,
+    cfl=0.5,
+    max_steps=None,
     transfer=None,
     artificial_cells=0,
     saveat=None,
     cfl_limit=1.0,
     ordering="usl",
     checkpoint=False,
+    viscosity=None,
 ):
-    """Validate a run's arguments (before anything is traced) and build its ``Model``."""
+    """Validate a run's arguments (before anything is traced) and build its ``Model``.
+
+    Returns ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end``
+    (then ``steps`` is ``max_steps``).
+    """
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
-    _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint)
-    model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit, ordering)
-    return model, as_float(dt), saveat
+    if t_end is not None:
+        if dt is not None or steps is not None:
+            raise ValueError("give either dt and steps (fixed steps) or t_end, cfl and max_steps, not both")
+        if max_steps is None:
+            raise ValueError("max_steps (an integer >= 1, the bound of the scan) is required with t_end")
+        check_positive("t_end", t_end)
+        check_positive("cfl", cfl)
+        dt, steps = ToEnd(t_end=t_end, cfl=cfl), max_steps
+    elif dt is None or steps is None:
+        raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
+    _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
+    model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit, ordering, viscosity)
+    return model, dt if isinstance(dt, ToEnd) else as_float(dt), steps, saveat
 
 
 def simulate(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
     *,
-    dt,
-    steps: int,
+    dt=None,
+    steps: int | None = None,
+    t_end=None,
+    cfl=0.5,
+    max_steps: int | None = None,
     transfer: AbstractTransfer | None = None,
     artificial_cells: int = 0,
     saveat: SaveAt | None = None,
     cfl_limit: float | None = 1.0,
     ordering: str = "usl",
     checkpoint: bool | int = False,
+    viscosity: ArtificialViscosity | None = None,
     throw: bool = True,
 ) -> Solution:
-    """Run ``steps`` explicit steps of size ``dt`` in one compiled ``lax.scan``.
+    """Run explicit steps in one compiled ``lax.scan``: ``steps`` steps of ``dt``, or to ``t_end``.
 
-    Compiled once per structure (scene class, static sizes, method choices, ``steps``, ``saveat``):
-    new parameter values (``beta``, ``h``, ``dt``, ...) reuse the compiled run. Works under
-    ``jax.grad``, ``jax.vmap`` and ``jax.jit``.
+    Compiled once per structure (scene class, static sizes, method choices, ``steps`` or
+    ``max_steps``, ``saveat``): new parameter values (``beta``, ``h``, ``dt``, ``t_end``, ``cfl``,
+    ...) reuse the compiled run. Works under ``jax.grad``, ``jax.vmap`` and ``jax.jit``.
 
     Args:
         scene: the scene and its parameters.
         interpolator: ``SPQ()``, ``GIMP()``, ``GIMP(contiguous=True)``, ``CPDI()`` or ``MPQ()``.
-        dt: time step (> 0).
-        steps: number of steps (>= 0).
+        dt: time step (> 0), with ``steps``, the number of steps (>= 0).
+        t_end: instead of ``dt`` and ``steps``, run to this time with the CFL-limited step
+            ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (default ``cfl = 0.5``) in a scan of
+            ``max_steps`` steps (required), the steps after ``t_end`` masked. A run that needs more
+            steps stops at ``max_steps`` with the status ``MAX_STEPS``. Differentiable in ``t_end``,
+            ``cfl`` and the scene's parameters (the step count is piecewise constant in them).
         transfer: ``FLIP()`` (default, the talk's), ``PIC()`` or ``APIC()``.
         artificial_cells: layers of artificial cells at each free end (SPEC section 4).
-        saveat: what to keep besides the final state (default: nothing).
+        saveat: what to keep besides the final state (default: nothing). With ``t_end``, the saved
+            times ``Solution.ts`` are those of the saved steps.
         cfl_limit: fail a step whose ``dt`` exceeds ``cfl_limit h / max(c + |v|)``; ``None`` to
             allow any step.
         ordering: ``"usl"`` (default, the talk's) or ``"musl"`` (see ``jaxmpm.Model``).
@@ -276,6 +353,7 @@ def simulate(
             ``ceil(sqrt(steps / 8))`` steps (memory ~ sqrt(steps)), an int sets the block length,
             ``False`` (default) stores every step's residuals (fastest for short runs). Results
             agree to round-off.
+        viscosity: ``ArtificialViscosity()`` to damp the ringing behind shocks; ``None`` (default).
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
 
     Returns:
@@ -285,19 +363,23 @@ def simulate(
         ValueError: bad input, before anything is traced.
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
-    model, dt_arr, saveat = _prepare(
+    model, dt_arr, n, saveat = _prepare(
         scene,
         interpolator,
         dt=dt,
         steps=steps,
+        t_end=t_end,
+        cfl=cfl,
+        max_steps=max_steps,
         transfer=transfer,
         artificial_cells=artificial_cells,
         saveat=saveat,
         cfl_limit=cfl_limit,
         ordering=ordering,
         checkpoint=checkpoint,
+        viscosity=viscosity,
     )
-    sol = _run_jit(model, dt_arr, steps, saveat, checkpoint_block(checkpoint, steps))
+    sol = _run_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
     return _finish(sol, dt, throw)
 
 
@@ -312,12 +394,11 @@ def simulate_timed(
         ``(solution, compile_s, wall_s)``: ``compile_s`` covers tracing, lowering and XLA
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
-    model, dt_arr, saveat = _prepare(scene, interpolator, **kwargs)
-    dt, steps = kwargs["dt"], kwargs["steps"]
+    model, dt_arr, n, saveat = _prepare(scene, interpolator, **kwargs)
     t0 = time.perf_counter()
-    block = checkpoint_block(kwargs.get("checkpoint", False), steps)
-    compiled = _run_jit.lower(model, dt_arr, steps, saveat, block).compile()
+    block = checkpoint_block(kwargs.get("checkpoint", False), n)
+    compiled = _run_jit.lower(model, dt_arr, n, saveat, block).compile()
     t1 = time.perf_counter()
-    sol = jax.block_until_ready(compiled(model, dt_arr, steps, saveat, block))
+    sol = jax.block_until_ready(compiled(model, dt_arr, n, saveat, block))
     t2 = time.perf_counter()
-    return _finish(sol, dt, throw), t1 - t0, t2 - t1
+    return _finish(sol, kwargs.get("dt"), throw), t1 - t0, t2 - t1

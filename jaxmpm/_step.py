@@ -19,6 +19,7 @@ from .materials import AbstractMaterial
 from .particles import Body, State
 from .scenes import AbstractScene
 from .transfers import AbstractTransfer
+from .viscosity import ArtificialViscosity
 
 ORDERINGS = ("usl", "musl")
 
@@ -33,6 +34,7 @@ class Model(eqx.Module):
         artificial_cells: layers of artificial cells at each free end (0: none; static).
         cfl_limit: a step with ``dt > cfl_limit h / max(c + |v|)`` is a failure; ``None`` disables
             the check (static).
+        viscosity: an ``ArtificialViscosity`` added to the stress in compression, or ``None``.
         ordering: ``"usl"`` (the talk's, SPEC 2) or ``"musl"`` (static). MUSL (Sulsky, Zhou &
             Schreyer 1995) re-projects the particles' new momenta to the grid after the particle
             velocity update and advances positions, corners, traction points and F with those
@@ -47,6 +49,7 @@ class Model(eqx.Module):
     artificial_cells: int = eqx.field(static=True, default=0)
     cfl_limit: float | None = eqx.field(static=True, default=1.0)
     ordering: str = eqx.field(static=True, default="usl")
+    viscosity: ArtificialViscosity | None = None
 
     def __check_init__(self):
         if self.ordering not in ORDERINGS:
@@ -94,19 +97,29 @@ def initial_state(model: Model, s: Setup) -> State:
     n, dim = body.X.shape
     dtype = body.X.dtype
     v = jax.vmap(scene.initial_velocity)(body.X)
-    F = jnp.broadcast_to(jnp.eye(dim, dtype=dtype), (n, dim, dim))
+    x_tr = traction_points(body, scene.cells, scene.h, traction_sides(scene))
+    if scene.initial_position is None:
+        x, corners = body.X, body.X_corners
+        F = jnp.broadcast_to(jnp.eye(dim, dtype=dtype), (n, dim, dim))
+    else:  # a body that starts deformed: F = dx/dX, corners and traction points mapped alike
+        place = jax.vmap(scene.initial_position)
+        x, corners = place(body.X), place(body.X_corners)
+        F = jax.vmap(jax.jacfwd(scene.initial_position))(body.X)
+        x_tr = None if x_tr is None else place(x_tr)
     C = jax.vmap(jax.jacfwd(scene.initial_velocity))(body.X) if model.transfer.affine else None
-    corners = body.X_corners if model.interpolator.tracks_corners else None
+    if model.transfer.affine and scene.initial_position is not None:
+        C = jnp.einsum("nab,nbc->nac", C, jnp.linalg.inv(F))  # C = dv/dx = dv/dX F^-1
+    corners = corners if model.interpolator.tracks_corners else None
     return State(
         t=jnp.zeros((), dtype=dtype),
         step=jnp.zeros((), dtype=jnp.int32),
-        x=body.X,
+        x=x,
         v=v,
         F=F,
         sigma=jax.vmap(s.material.stress)(F),
         C=C,
         corners=corners,
-        x_traction=traction_points(body, scene.cells, scene.h, traction_sides(scene)),
+        x_traction=x_tr,
         status=jnp.zeros((), dtype=jnp.int32),
         fail_step=jnp.full((), -1, dtype=jnp.int32),
         fail_particle=jnp.full((), -1, dtype=jnp.int32),
@@ -121,10 +134,26 @@ def _particle_corners(state: State, body: Body):
     return None if state.corners is None else state.corners[body.corner_ids]
 
 
-def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Array | None = None) -> State:
+def stable_dt(model: Model, s: Setup, state: State, cfl: Float[Array, ""]) -> Float[Array, ""]:
+    """The CFL-limited step ``cfl h / max_p(c_p + |v_p|)`` of the current state (SPEC 5)."""
+    c = jax.vmap(s.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
+    speed = jnp.max(c + jnp.linalg.norm(state.v, axis=1))
+    return cfl * s.grid.h / speed
+
+
+def step(
+    model: Model,
+    s: Setup,
+    state: State,
+    dt: Float[Array, ""],
+    limit: Array | None = None,
+    active: Array | None = None,
+    t_new: Array | None = None,
+) -> State:
     """One USL (or MUSL) step. A step that fails a check is not taken: the state stays, its status
     records it. With ``limit``, a step from ``state.step >= limit`` is not taken either (masking the
-    tail of a fixed-length chunk)."""
+    tail of a fixed-length chunk); with ``active`` false, neither is it (the tail of a run to an end
+    time). ``t_new`` is the time after the step (default ``(step + 1) dt``, for a fixed step)."""
     scene, interp, transfer = model.scene, model.interpolator, model.transfer
     grid, body, mat = s.grid, s.body, s.material
     x, v, F, t = state.x, state.v, state.F, state.t
@@ -155,8 +184,8 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
     # edge exactly on a node gives its far neighbour 1e-31 instead of 0), not mass: such a node counts
     # as empty. Otherwise a/m there is round-off divided by round-off, and the run depends on which.
     tiny = 256 * jnp.finfo(m.dtype).eps * jnp.max(m)
-    active = mass_all > tiny
-    v_n = jnp.where(active[:, None], momentum / jnp.where(active, mass_all, 1.0)[:, None], 0.0)
+    occupied = mass_all > tiny
+    v_n = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
 
     # 2. Forces: internal, body force, tractions at the material boundary points.
     V = body.V0 * _det(F)
@@ -193,7 +222,7 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
         if s.layer is not None:
             v_a, C_a = layer.extrapolate(v_p), layer.mean(C) if transfer.affine else None
             momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
-        v_new = jnp.where(active[:, None], momentum / jnp.where(active, mass_all, 1.0)[:, None], 0.0)
+        v_new = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
         if s.walls is not None:
             v_new = jnp.where(s.walls[:, None], 0.0, v_new)
     x_p = x + dt * jnp.einsum("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
@@ -201,12 +230,14 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
     # 5. Kinematics, 6. constitutive update.
     F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
     sigma = jax.vmap(mat.stress)(F_new)
+    if model.viscosity is not None:
+        sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
     x_tr = state.x_traction
     if x_tr is not None:
         x_tr = x_tr + dt * jnp.einsum("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
 
     new = State(
-        t=(state.step + 1).astype(dt.dtype) * dt,
+        t=(state.step + 1).astype(dt.dtype) * dt if t_new is None else t_new,
         step=state.step + 1,
         x=x_p,
         v=v_p,
@@ -234,7 +265,9 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
     if model.cfl_limit is not None:
         c = jax.vmap(mat.sound_speed, in_axes=(0, None))(F, scene.rho0)
         speed = c + jnp.linalg.norm(v, axis=1)
-        checks.append((st_bits.CFL, dt * speed > model.cfl_limit * grid.h))
+        # (a relative allowance of a few ulps, so a step set exactly at the limit passes)
+        allowed = model.cfl_limit * grid.h * (1.0 + 16 * jnp.finfo(dt.dtype).eps)
+        checks.append((st_bits.CFL, dt * speed > allowed))
     if stencil.ok is not None:
         checks.append((st_bits.STENCIL, ~stencil.ok | _merge(pre_checks, st_bits.STENCIL, body.n)))
     if scene.body_force is not None or state.x_traction is not None:
@@ -242,8 +275,10 @@ def step(model: Model, s: Setup, state: State, dt: Float[Array, ""], limit: Arra
     bits, particle = st_bits.combine(checks)
 
     if limit is not None:  # a masked step is neither taken nor checked
-        bits = jnp.where(state.step < limit, bits, 0)
-        healthy = (state.status == 0) & (state.step < limit)
+        active = state.step < limit if active is None else active & (state.step < limit)
+    if active is not None:
+        bits = jnp.where(active, bits, 0)
+        healthy = (state.status == 0) & active
     else:
         healthy = state.status == 0
     ok = healthy & (bits == 0)

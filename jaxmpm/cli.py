@@ -11,6 +11,13 @@ import re
 import sys
 import time
 
+STUDIES = {
+    "talk": "talk",
+    "convergence": "convergence",
+    "work-precision": "work_precision",
+    "stability": "stability",
+}
+
 
 class UsageError(Exception):
     """Bad input from the command line: one line, exit status 2."""
@@ -51,8 +58,18 @@ def _parser() -> argparse.ArgumentParser:
         choices=["usl", "musl"],
         help="usl: the talk's (default); musl: re-project nodal velocities before kinematics",
     )
-    run.add_argument("--dt", type=float, required=True, help="time step (> 0)")
-    run.add_argument("--steps", type=int, required=True, help="number of steps (>= 0)")
+    run.add_argument("--dt", type=float, help="time step (> 0), with --steps")
+    run.add_argument("--steps", type=int, help="number of steps (>= 0), with --dt")
+    run.add_argument("--t-end", type=float, metavar="T", help="instead of --dt/--steps: run to time T")
+    run.add_argument("--cfl", type=float, default=0.5, help="with --t-end: dt = CFL h / max(c + |v|) (0.5)")
+    run.add_argument("--max-steps", type=int, metavar="N", help="with --t-end: the bound on the step count")
+    run.add_argument(
+        "--viscosity",
+        nargs="?",
+        const="2.0,0.2",
+        metavar="QUAD,LIN",
+        help="artificial viscosity in compression (default coefficients 2.0,0.2)",
+    )
     run.add_argument(
         "--cfl-limit",
         default="1.0",
@@ -76,7 +93,12 @@ def _parser() -> argparse.ArgumentParser:
     rs.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     st = sub.add_parser("study", help="run a study and write its figures and tables")
-    st.add_argument("name", choices=["talk"], help="talk: the 2013 MPM workshop comparison")
+    st.add_argument(
+        "name",
+        choices=list(STUDIES),
+        help="talk: the 2013 MPM workshop comparison; convergence: observed orders on the verification "
+        "ladder; work-precision: error against run time; stability: the stiff and extreme map",
+    )
     st.add_argument("--out", required=True, help="output directory")
     st.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")
     return p
@@ -96,7 +118,9 @@ def _scene_from(name: str, assignments: list[str]):
             raise UsageError(f"scene parameters are name=value, got {item!r}")
         if key not in defaults:
             raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
-        if isinstance(defaults[key], int):
+        if isinstance(defaults[key], str):
+            kwargs[key] = raw
+        elif isinstance(defaults[key], int):
             try:
                 kwargs[key] = int(raw)
             except ValueError:
@@ -139,7 +163,7 @@ def _cmd_scenes(args) -> int:
     for name, cls in SCENES.items():
         print(f"{name}: {cls.description}")
         for key, value in cls.parameters().items():
-            kind = "int" if isinstance(value, int) else "float"
+            kind = type(value).__name__
             print(f"    {key:<8} = {value!r:<10} ({kind})")
     return 0
 
@@ -165,16 +189,43 @@ def _cmd_run(args) -> int:
             raise UsageError(f"--grad: {e}") from None
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
+    viscosity = None
+    if args.viscosity is not None:
+        try:
+            quad, lin = (float(c) for c in args.viscosity.split(","))
+            viscosity = jm.ArtificialViscosity(c_quad=quad, c_lin=lin)
+        except ValueError as e:
+            raise UsageError(
+                f"--viscosity must be QUAD,LIN (two numbers >= 0), got {args.viscosity!r}: {e}"
+            ) from None
     settings = dict(
-        transfer=transfer, artificial_cells=args.artificial_cells, cfl_limit=cfl, ordering=args.ordering
+        transfer=transfer,
+        artificial_cells=args.artificial_cells,
+        cfl_limit=cfl,
+        ordering=args.ordering,
+        viscosity=viscosity,
     )
+    if viscosity is not None and args.out is not None:
+        raise UsageError("--viscosity is not saved by --out runs yet; run without --out")
+    if args.t_end is not None:
+        if args.dt is not None or args.steps is not None:
+            raise UsageError(
+                "give either --dt and --steps, or --t-end (with --cfl and --max-steps), not both"
+            )
+        if args.max_steps is None:
+            raise UsageError("--t-end needs --max-steps N (the bound on the number of steps)")
+        if args.out is not None or args.grad is not None:
+            raise UsageError("--out and --grad take fixed steps (--dt and --steps), not --t-end")
+        timing = dict(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps)
+    else:
+        if args.dt is None or args.steps is None:
+            raise UsageError("give --dt and --steps, or --t-end and --max-steps")
+        timing = dict(dt=args.dt, steps=args.steps)
     if args.checkpoint_every is not None and args.out is None:
         raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
     try:
         if args.out is None:
-            sol, compile_s, wall_s = jm.simulate_timed(
-                scene, interp, dt=args.dt, steps=args.steps, **settings
-            )
+            sol, compile_s, wall_s = jm.simulate_timed(scene, interp, **timing, **settings)
         else:
             sol, compile_s, wall_s = jm.long_run.run_timed(
                 scene,
@@ -185,7 +236,7 @@ def _cmd_run(args) -> int:
                 out=args.out,
                 checkpoint_every=args.checkpoint_every,
                 progress=False if args.no_progress else None,
-                **settings,
+                **{k: v for k, v in settings.items() if k != "viscosity"},
             )
     except ValueError as e:
         raise UsageError(str(e)) from None
@@ -207,6 +258,10 @@ def _cmd_run(args) -> int:
         dt=args.dt,
         steps=args.steps,
     )
+    if args.t_end is not None:
+        run.update(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step))
+    if viscosity is not None:
+        run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
     if args.out is not None:
         run["out"] = str(args.out)
     return _report(run, scene, sol, compile_s, wall_s, grad, grad_s, args.json)
@@ -242,10 +297,7 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
 
     err = jm.errors(scene, sol.state, sol.body)
     diag = jm.diagnostics(scene, sol.state, sol.body)
-    params = {
-        k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
-        for k, v in scene.parameters().items()
-    }
+    params = scene.parameter_values()
     st = sol.state
     particles = dict(
         X=_floats(sol.body.X[:, 0]),
@@ -297,9 +349,9 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
 
 
 def _cmd_study(args) -> int:
-    from .studies import talk
+    import importlib
 
-    talk.main(out=args.out, small=args.small)
+    importlib.import_module(f".studies.{STUDIES[args.name]}", "jaxmpm").main(out=args.out, small=args.small)
     return 0
 
 
@@ -309,6 +361,7 @@ def main(argv: list[str] | None = None) -> int:
 
     jax.config.update("jax_enable_x64", True)
     from ._simulate import SimulationError
+    from .status import MAX_STEPS
 
     try:
         args = _parser().parse_args(argv)
@@ -322,8 +375,13 @@ def main(argv: list[str] | None = None) -> int:
         head, _, tail = str(e).partition(" The state of the last good step")
         saved = tail.partition("error.solution.")[2].strip()  # long runs add where they were saved
         last = int(e.solution.state.step)
-        hint = saved or f"Rerun with --steps {last} to see the last good state."
-        print(f"{head} The last good state is step {last}. {hint}", file=sys.stderr)
+        if getattr(args, "t_end", None) is None:
+            hint = saved or f"Rerun with --steps {last} to see the last good state."
+        elif e.solution.state.status & MAX_STEPS:
+            hint = ""
+        else:
+            hint = f"Rerun with --t-end {float(e.solution.state.t):.9g} to see the last good state."
+        print(f"{head} The last good state is step {last}. {hint}".rstrip(), file=sys.stderr)
         return 3
 
 

@@ -112,10 +112,7 @@ def _interpolator_from(meta: dict):
 
 
 def _scene_params(scene) -> dict:
-    return {
-        k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
-        for k, v in type(scene).parameters().items()
-    }
+    return scene.parameter_values()
 
 
 def _write_npz(path: pathlib.Path, arrays: dict) -> None:
@@ -283,7 +280,7 @@ def run_timed(
         check_int("checkpoint_every", checkpoint_every, 1)
         if out is None:
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
-    model, dt_arr, saveat = _prepare(
+    model, dt_arr, _, saveat = _prepare(
         scene,
         interpolator,
         dt=dt,
@@ -356,7 +353,7 @@ def _load(path: pathlib.Path):
         arrays = {k: f[k] for k in f.files if k != "meta"}
     scene = SCENES[meta["scene"]](**meta["params"])
     interp = _interpolator_from(meta["interpolator"])
-    model, dt_arr, saveat = _prepare(
+    model, dt_arr, _, saveat = _prepare(
         scene,
         interp,
         dt=meta["dt"],

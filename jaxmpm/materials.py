@@ -90,3 +90,46 @@ class LinearElastic(AbstractMaterial):
     def sound_speed(self, F, rho0):
         del F
         return jnp.sqrt(self.E / rho0)
+
+
+class NeoHookean(AbstractMaterial):
+    """Compressible neo-Hookean solid in 1D: ``sigma = lambda ln(F) / F + mu (F - 1 / F)``.
+
+    The 1D (uniaxial strain) reading of ``sigma = (lambda ln J / J) I + (mu / J) (B - I)`` with
+    ``B = F^2`` (Bonet & Wood, "Nonlinear continuum mechanics", sec. 5.4). With unit cross-section the
+    first Piola stress equals ``sigma`` (SPEC 1), so ``W = lambda ln(F)^2 / 2 + mu ((F^2 - 1) / 2 -
+    ln F)`` and the Lagrangian wave speed is ``sqrt(dsigma/dF / rho0)``; the Eulerian one used by the
+    stable time step is ``F`` times that. At ``F = 1`` it is ``sqrt((lambda + 2 mu) / rho0)``.
+
+    Attributes:
+        lam: first Lame parameter (>= 0).
+        mu: shear modulus (> 0).
+    """
+
+    lam: Float[Array, ""] = eqx.field(converter=as_float)
+    mu: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check_nonnegative("lam", self.lam)
+        check_positive("mu", self.mu)
+
+    def _F(self, F):
+        if F.shape[0] != 1:
+            raise NotImplementedError("NeoHookean is the 1D model; F must be 1x1")
+        return F[0, 0]
+
+    def stress(self, F):
+        f = self._F(F)
+        return jnp.reshape(self.lam * jnp.log(f) / f + self.mu * (f - 1.0 / f), (1, 1))
+
+    def energy_density(self, F):
+        f = self._F(F)
+        ln = jnp.log(f)
+        return 0.5 * self.lam * ln * ln + self.mu * (0.5 * (f * f - 1.0) - ln)
+
+    def sound_speed(self, F, rho0):
+        f = self._F(F)
+        # dsigma/dF = lambda (1 - ln F) / F^2 + mu (1 + 1 / F^2); it turns negative (the material
+        # softens) only for ln F > 1 + mu / lambda, where the speed is taken as zero.
+        stiffness = self.lam * (1.0 - jnp.log(f)) / (f * f) + self.mu * (1.0 + 1.0 / (f * f))
+        return f * jnp.sqrt(jnp.maximum(stiffness, 0.0) / rho0)

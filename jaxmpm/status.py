@@ -8,6 +8,7 @@ LEFT_GRID = 4
 CFL = 8
 STENCIL = 16
 SCENE_DATA = 32
+MAX_STEPS = 64
 
 QUANTITY = {
     NONFINITE: "non-finite state (x, v, F or sigma is NaN or inf)",
@@ -16,6 +17,7 @@ QUANTITY = {
     CFL: "time step beyond the stable limit (dt > cfl_limit * h / (c + |v|))",
     STENCIL: "GIMP domain wider than its stencil (raise GIMP.max_span, or use CPDI or MPQ)",
     SCENE_DATA: "the scene's traction or body force is not finite (past the end of its solution?)",
+    MAX_STEPS: "max_steps steps were taken before t_end was reached (raise max_steps)",
 }
 
 

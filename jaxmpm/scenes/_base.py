@@ -26,7 +26,12 @@ class AbstractScene(eqx.Module):
     - ``traction(t)`` returns ``(left, right)``, each ``None`` or the traction vector ``sigma n``;
     - ``left`` and ``right`` are ``"free"`` (artificial cells may be added there) or ``"wall"``
       (node velocity zero);
-    - ``exact`` is ``None`` or a method ``(X, t) -> dict(x, v, F, sigma)`` for one particle.
+    - ``exact`` is ``None`` or a method ``(X, t) -> dict(x, v, F, sigma)`` for one particle;
+    - ``initial_position`` is ``None`` (the body starts undeformed, ``x = X``, ``F = I``) or a method
+      ``X -> x`` for a body that starts deformed: centres, corners and traction points are mapped
+      by it and ``F = dx/dX`` at the centres;
+    - ``smooth`` is ``None`` (the exact solution is smooth everywhere) or a method ``(X, t) -> bool``
+      marking the particles away from fronts, where errors are expected to converge.
     """
 
     name: ClassVar[str]
@@ -35,6 +40,8 @@ class AbstractScene(eqx.Module):
     right: ClassVar[str] = "free"
     body_force: ClassVar[Callable | None] = None
     exact: ClassVar[Callable | None] = None
+    initial_position: ClassVar[Callable | None] = None
+    smooth: ClassVar[Callable | None] = None
 
     h: eqx.AbstractVar[Float[Array, ""]]
     rho0: eqx.AbstractVar[Float[Array, ""]]
@@ -79,7 +86,13 @@ class AbstractScene(eqx.Module):
         """Every parameter with its default: floats for continuous ones, ints for structural ones."""
         out = {}
         for f in dataclasses.fields(cls):
-            if f.default is dataclasses.MISSING:
-                continue
-            out[f.name] = f.default
+            if isinstance(f.default, (int, float, str)) and not isinstance(f.default, bool):
+                out[f.name] = f.default
         return out
+
+    def parameter_values(self) -> dict[str, object]:
+        """This scene's parameters as plain Python values (floats, ints and strings)."""
+        return {
+            k: (getattr(self, k) if isinstance(v, (int, str)) else float(getattr(self, k)))
+            for k, v in self.parameters().items()
+        }

@@ -1,0 +1,168 @@
+"""Exact solutions of the 1D adiabatic gas problems: the isentropic Riemann problem and the expansion
+into vacuum (SPEC 6.5). Pure JAX functions of their parameters, so they vmap and differentiate.
+
+The gas is ``P = P0 F^-gamma - p_atm`` in the Lagrangian description (unit cross-section):
+
+    dF/dt = dv/dX,    rho0 dv/dt = -dP/dX,
+
+the p-system. Its waves travel at the Lagrangian speeds ``-C`` and ``+C``, ``C(F) = c(F) / F =
+sqrt(gamma P0 / rho0) F^(-(gamma+1)/2)``, ``c`` the Eulerian sound speed. Across a rarefaction the
+Riemann invariants ``v -/+ g(F)`` hold, ``g(F) = 2 c(F) / (gamma - 1)``; across a shock, the
+Rankine-Hugoniot conditions ``s [F] = -[v]``, ``rho0 s [v] = [P]``. (Toro, "Riemann solvers and
+numerical methods for fluid dynamics", ch. 4, written here in Lagrangian form; ``p_atm`` drops out.)
+"""
+
+import jax
+import jax.numpy as jnp
+
+
+def sound_speed(F, P0, gamma, rho0):
+    """Eulerian sound speed ``c = sqrt(gamma P0 F^(1-gamma) / rho0)``."""
+    return jnp.sqrt(gamma * P0 * F ** (1.0 - gamma) / rho0)
+
+
+def lagrangian_speed(F, P0, gamma, rho0):
+    """Lagrangian wave speed ``C = c / F`` (reference length per time)."""
+    return sound_speed(F, P0, gamma, rho0) / F
+
+
+def _branches(F, F0, v0, P0, gamma, rho0, sign):
+    """The velocity behind a wave of family ``sign`` (-1 left, +1 right) that brings state ``(F0, v0)``
+    to ``F``: a rarefaction for ``F >= F0`` (expansion), a shock for ``F < F0``."""
+    g = 2.0 / (gamma - 1.0)
+    rare = v0 - sign * g * (sound_speed(F0, P0, gamma, rho0) - sound_speed(F, P0, gamma, rho0))
+    dP = P0 * (F ** (-gamma) - F0 ** (-gamma))  # >= 0 in compression
+    jump = jnp.sqrt(jnp.maximum(dP * (F0 - F), 0.0) / rho0)
+    shock = v0 + sign * jump
+    return jnp.where(F >= F0, rare, shock)
+
+
+def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
+    """The star state ``(F*, v*)`` between the two waves of the p-system's Riemann problem.
+
+    Solves ``v_left(F*) = v_right(F*)`` (the left wave curve is increasing in ``F*``, the right one
+    decreasing) by bisection in ``ln F*`` to round-off, then one Newton step on that value, so that
+    derivatives follow the implicit function theorem. Raise nothing: when the data pull apart faster
+    than ``g(F_L) + g(F_R)`` a vacuum forms and ``F*`` runs to the top of the bracket; check
+    ``vacuum_forms`` first.
+    """
+
+    def f(y):
+        F = jnp.exp(y)
+        return _branches(F, F_L, v_L, P0, gamma, rho0, -1.0) - _branches(F, F_R, v_R, P0, gamma, rho0, 1.0)
+
+    lo0 = jnp.log(jnp.minimum(F_L, F_R)) - 60.0 / gamma
+    hi0 = jnp.log(jnp.maximum(F_L, F_R)) + 400.0 / gamma
+
+    def bisect(_, bounds):
+        lo, hi = bounds
+        mid = 0.5 * (lo + hi)
+        up = f(mid) > 0.0
+        return jnp.where(up, lo, mid), jnp.where(up, mid, hi)
+
+    lo, hi = jax.lax.fori_loop(0, iterations, bisect, (lo0, hi0))
+    y = jax.lax.stop_gradient(0.5 * (lo + hi))
+    y = y - f(y) / jax.grad(f)(y)
+    F = jnp.exp(y)
+    return F, _branches(F, F_L, v_L, P0, gamma, rho0, -1.0)
+
+
+def vacuum_forms(F_L, v_L, F_R, v_R, P0, gamma, rho0):
+    """Whether the data pull apart faster than the gas can follow (no star state of finite F)."""
+    g = 2.0 / (gamma - 1.0)
+    c = lambda F: sound_speed(F, P0, gamma, rho0)
+    return v_R - v_L >= g * (c(F_L) + c(F_R))
+
+
+def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
+    """The star state and the Lagrangian speeds bounding each wave.
+
+    Returns a dict with ``F_star, v_star`` and ``a1 <= b1 < 0 < a2 <= b2``: the left wave spans
+    ``a1 <= (X - X0)/t <= b1`` (a rarefaction fan, or a shock where ``a1 == b1``), the right wave
+    ``a2 .. b2``; ``rare1``, ``rare2`` say which waves are rarefactions.
+    """
+    F_s, v_s = riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    C = lambda F: lagrangian_speed(F, P0, gamma, rho0)
+
+    def shock_speed(F0):
+        dP = P0 * (F_s ** (-gamma) - F0 ** (-gamma))
+        return jnp.sqrt(jnp.maximum(dP / (rho0 * (F0 - F_s)), 0.0))
+
+    rare1, rare2 = F_s >= F_L, F_s >= F_R
+    # a shock's speed is computed on the branch where it exists (the other branch is discarded)
+    s1 = shock_speed(jnp.where(rare1, 2.0 * F_s, F_L))
+    s2 = shock_speed(jnp.where(rare2, 2.0 * F_s, F_R))
+    return dict(
+        F_star=F_s,
+        v_star=v_s,
+        a1=jnp.where(rare1, -C(F_L), -s1),
+        b1=jnp.where(rare1, -C(F_s), -s1),
+        a2=jnp.where(rare2, C(F_s), s2),
+        b2=jnp.where(rare2, C(F_R), s2),
+        rare1=rare1,
+        rare2=rare2,
+    )
+
+
+def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
+    """The self-similar solution at ``xi = (X - X0) / t``: ``(F, v, D)``.
+
+    ``D(xi) = int_{-inf}^{xi} (F - F_0) dxi'``, with ``F_0`` the initial data, gives positions:
+    ``x(X, t) = x(X, 0) + v_L t + t D(xi)`` (while the waves have not reached the ends).
+    """
+    w = riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    a1, b1, a2, b2, F_s, v_s = w["a1"], w["b1"], w["a2"], w["b2"], w["F_star"], w["v_star"]
+    K = jnp.sqrt(gamma * P0 / rho0)
+    g = 2.0 / (gamma - 1.0)
+    c = lambda F: sound_speed(F, P0, gamma, rho0)
+    # Inside a fan, C(F) = |xi|: F = (K / |xi|)^(2 / (gamma + 1)).
+    fan_F = lambda z: (K / jnp.abs(z)) ** (2.0 / (gamma + 1.0))
+    e = (gamma - 1.0) / (gamma + 1.0)
+    Kf = K ** (2.0 / (gamma + 1.0))
+    A_left = lambda z: -Kf * jnp.abs(z) ** e / e  # antiderivative of fan_F on xi < 0
+    A_right = lambda z: Kf * jnp.abs(z) ** e / e  # and on xi > 0
+
+    z1 = jnp.clip(xi, a1, b1)
+    z2 = jnp.clip(xi, a2, b2)
+    in1 = (xi > a1) & (xi < b1)
+    in2 = (xi > a2) & (xi < b2)
+    F1, F2 = fan_F(z1), fan_F(z2)
+    F = jnp.where(xi <= a1, F_L, jnp.where(in1, F1, jnp.where(xi <= a2, F_s, jnp.where(in2, F2, F_R))))
+    v = jnp.where(
+        xi <= a1,
+        v_L,
+        jnp.where(
+            in1,
+            v_L + g * (c(F_L) - c(F1)),
+            jnp.where(xi <= a2, v_s, jnp.where(in2, v_R - g * (c(F_R) - c(F2)), v_R)),
+        ),
+    )
+    D = (
+        jnp.where(w["rare1"], A_left(z1) - A_left(a1), 0.0)
+        + F_s * (jnp.clip(xi, b1, a2) - b1)
+        + jnp.where(w["rare2"], A_right(z2) - A_right(a2), 0.0)
+        - F_L * (jnp.clip(xi, a1, 0.0) - a1)
+        - F_R * jnp.clip(xi, 0.0, b2)
+    )
+    return F, v, D
+
+
+def vacuum_expansion(X, t, L, P0, gamma, rho0):
+    """Gas at rest on ``[0, L]`` expanding into vacuum from ``X = L`` (SPEC 6.5): ``(x, v, F)``.
+
+    A material point is at rest until the rarefaction head reaches it at ``t_h = (L - X) / c0``;
+    then ``x = L + eta t``, ``eta = (2 c0 - (gamma+1) c0 s) / (gamma - 1)``, ``s = (t/t_h)^-k``,
+    ``k = (gamma-1)/(gamma+1)``, so ``v = 2 c0 (1 - s) / (gamma - 1)`` and ``F = (t / t_h)^(2/(gamma+1))``.
+    Valid until the head reaches the wall, ``t <= L / c0``. At the front (``X = L``) ``F`` is infinite.
+    """
+    c0 = jnp.sqrt(gamma * P0 / rho0)
+    t_h = (L - X) / c0
+    moving = t > t_h
+    ratio = jnp.where(moving, t / jnp.where(moving, t_h, 1.0), 1.0)  # t / t_h, 1 at rest
+    k = (gamma - 1.0) / (gamma + 1.0)
+    s = ratio ** (-k)
+    eta = (2.0 * c0 - (gamma + 1.0) * c0 * s) / (gamma - 1.0)
+    x = jnp.where(moving, L + eta * t, X)
+    v = jnp.where(moving, 2.0 * c0 * (1.0 - s) / (gamma - 1.0), 0.0)
+    F = ratio ** (2.0 / (gamma + 1.0))
+    return x, v, F

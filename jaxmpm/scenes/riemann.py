@@ -1,0 +1,119 @@
+"""The isentropic Riemann problem of the adiabatic gas (the p-system), with its exact solution."""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._checks import check_finite, check_int, check_nonnegative, check_positive, is_concrete
+from .._util import as_float
+from ..exact import riemann_solution, riemann_waves, vacuum_forms
+from ..materials import AdiabaticGas
+from ._base import AbstractScene
+
+
+class Riemann(AbstractScene):
+    """Two uniform gas states meeting at ``X0 = L / 2``: ``(F_left, v_left)`` and ``(F_right, v_right)``.
+
+    The body starts deformed, ``x(X, 0) = F_left X`` left of ``X0`` and continuing with slope
+    ``F_right`` right of it, and the data break into a left and a right wave (each a rarefaction
+    fan or a shock) around a star state ``(F*, v*)`` that ``jaxmpm.exact`` computes from the wave
+    curves. Both ends are free and carry their state's traction, so the solution is exact there
+    until a wave arrives: ``t_valid`` is when the first wave reaches an end.
+
+    The defaults are a shock tube: gas compressed to ``F = 0.5`` (pressure 2^1.4 = 2.64 times that
+    on the right) next to gas at ``F = 1``, both at rest: a rarefaction runs left, a shock right.
+    MPM rings behind a shock; ``simulate(..., viscosity=jm.ArtificialViscosity())`` damps it.
+
+    Attributes:
+        F_left, v_left, F_right, v_right: the two states.
+        P0, gamma, p_atm, rho0: the gas (``p_atm`` shifts the pressure and changes nothing else).
+        h, cells (even, so ``X0`` is a cell face), ppc, pad: as for every scene.
+    """
+
+    name = "riemann"
+    description = "1D isentropic gas Riemann problem (p-system), exact star state, fans and shocks"
+
+    F_left: jnp.ndarray = eqx.field(converter=as_float, default=0.5)
+    v_left: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
+    F_right: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    v_right: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
+    P0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
+    p_atm: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
+    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 64)
+    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    cells: int = eqx.field(static=True, default=64)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=8)
+
+    def __check_init__(self):
+        check_int("cells", self.cells, 2)
+        if self.cells % 2:
+            raise ValueError(f"cells must be even (X0 = L/2 is a cell face), got {self.cells}")
+        check_positive("F_left", self.F_left)
+        check_positive("F_right", self.F_right)
+        check_finite("v_left", self.v_left)
+        check_finite("v_right", self.v_right)
+        check_nonnegative("p_atm", self.p_atm)
+        args = self._args()
+        if all(is_concrete(a) for a in args) and bool(vacuum_forms(*args)):
+            raise ValueError(
+                "v_right - v_left must be below 2 (c(F_left) + c(F_right)) / (gamma - 1), or a vacuum "
+                f"forms between the states; got v_left={float(self.v_left)}, v_right={float(self.v_right)}"
+            )
+
+    def _args(self):
+        return (self.F_left, self.v_left, self.F_right, self.v_right, self.P0, self.gamma, self.rho0)
+
+    def material(self):
+        return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=self.p_atm)
+
+    @property
+    def X0(self):
+        return 0.5 * self.length
+
+    def waves(self) -> dict:
+        """Star state and wave speeds (see ``jaxmpm.exact.riemann_waves``)."""
+        return riemann_waves(*self._args())
+
+    @property
+    def t_valid(self):
+        """When the fastest wave reaches an end of the body (the exact solution holds until then)."""
+        w = self.waves()
+        return jnp.minimum(self.X0 / -w["a1"], (self.length - self.X0) / w["b2"])
+
+    def initial_position(self, X):
+        return jnp.where(X < self.X0, self.F_left * X, self.F_left * self.X0 + self.F_right * (X - self.X0))
+
+    def initial_velocity(self, X):
+        return jnp.where(X < self.X0, self.v_left, self.v_right) * jnp.ones_like(X)
+
+    def _stress(self, F):
+        return self.material().stress(jnp.reshape(F, (1, 1)))[:, 0]
+
+    def traction(self, t):
+        del t
+        return -self._stress(self.F_left), self._stress(self.F_right)
+
+    def exact(self, X, t):
+        positive = t > 0
+        ts = jnp.where(positive, t, 1.0)
+        xi = jnp.where(positive, (X[0] - self.X0) / ts, jnp.where(X[0] < self.X0, -jnp.inf, jnp.inf))
+        F, v, D = riemann_solution(xi, *self._args())
+        D = jnp.where(positive, D, 0.0)
+        x = self.initial_position(X) + (self.v_left + D) * t
+        F_mat = jnp.reshape(F, (1, 1))
+        return dict(x=x, v=jnp.reshape(v, (1,)), F=F_mat, sigma=self.material().stress(F_mat))
+
+    def smooth(self, X, t, margin=0.05):
+        """Particles farther than ``margin L`` (reference length) from every wave edge."""
+        w = self.waves()
+        edges = jnp.stack([w["a1"], w["b1"], w["a2"], w["b2"]]) * t + self.X0
+        return jnp.all(jnp.abs(X[0] - edges) > margin * self.length)
+
+    def star(self, X, t, margin=0.05):
+        """Particles in the star region, farther than ``margin L`` from the waves bounding it, left and
+        right of ``X0`` (on the two sides the gas went through different waves)."""
+        w = self.waves()
+        xi_lo, xi_hi = self.X0 + w["b1"] * t, self.X0 + w["a2"] * t
+        inside = (X[0] > xi_lo + margin * self.length) & (X[0] < xi_hi - margin * self.length)
+        return inside & (X[0] < self.X0), inside & (X[0] > self.X0)

@@ -1,0 +1,75 @@
+"""Adiabatic gas expanding into vacuum: a centred rarefaction with an exact solution (SPEC 6.5)."""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._checks import check_positive
+from .._util import as_float
+from ..exact import vacuum_expansion
+from ..materials import AdiabaticGas
+from ._base import AbstractScene
+
+
+class VacuumExpansion(AbstractScene):
+    """Gas at rest on ``[0, L]``, wall at 0, vacuum beyond ``L`` (``p_atm = 0``): stiff and extreme.
+
+    A rarefaction runs from ``L`` into the gas at ``c0 = sqrt(gamma P0 / rho0)``; the front escapes at
+    ``2 c0 / (gamma - 1)`` and its ``F`` grows without bound. ``exact`` gives, for a particle, the
+    exact *domain average* ``F = (x(X + r0) - x(X - r0)) / (2 r0)`` (finite at the front), with the
+    point values of ``x``, ``v`` and ``sigma`` at its centre. Valid for ``t <= t_valid = L / c0``
+    (the head then reaches the wall). ``smooth(X, t)`` marks the particles away from both fronts.
+
+    The free end carries no traction (vacuum). The default ``pad`` leaves room for the front to
+    run to ``t_valid`` with ``gamma >= 1.4``: it travels ``2 L / (gamma - 1)`` by then.
+
+    Attributes:
+        P0: initial pressure; gamma: adiabatic exponent; rho0: initial density.
+        h, cells, ppc, pad: as for every scene.
+    """
+
+    name = "vacuum-expansion"
+    description = "1D gas expanding into vacuum (centred rarefaction, exact), wall at 0"
+    left = "wall"
+    right = "free"
+
+    P0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
+    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 32)
+    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    cells: int = eqx.field(static=True, default=32)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=170)
+
+    def __check_init__(self):
+        check_positive("P0", self.P0)
+
+    def material(self):
+        return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=0.0)
+
+    @property
+    def c0(self):
+        return jnp.sqrt(self.gamma * self.P0 / self.rho0)
+
+    @property
+    def t_valid(self):
+        return self.length / self.c0
+
+    def initial_velocity(self, X):
+        return jnp.zeros_like(X)
+
+    def _point(self, X, t):
+        return vacuum_expansion(X, t, self.length, self.P0, self.gamma, self.rho0)
+
+    def exact(self, X, t):
+        r0 = 0.5 * self.h / self.ppc
+        x, v, F_point = self._point(X[0], t)
+        x_lo, _, _ = self._point(X[0] - r0, t)
+        x_hi, _, _ = self._point(X[0] + r0, t)
+        F = jnp.reshape((x_hi - x_lo) / (2.0 * r0), (1, 1))
+        sigma = self.material().stress(jnp.reshape(F_point, (1, 1)))
+        return dict(x=jnp.reshape(x, (1,)), v=jnp.reshape(v, (1,)), F=F, sigma=sigma)
+
+    def smooth(self, X, t, margin=0.1):
+        """Particles farther than ``margin L`` (reference length) from the head and the front."""
+        head = self.length - self.c0 * t
+        return (jnp.abs(X[0] - head) > margin * self.length) & (X[0] < (1.0 - margin) * self.length)

@@ -1,0 +1,251 @@
+"""Stability on stiff and extreme cases: where each interpolator stays accurate, degrades, or breaks.
+
+The talk's gas expansion ``u = beta t X`` (exact at any amplitude) is driven far from the talk's
+regime: expansion to F = 100 and compression to F = 0.05, gamma from 1.1 to 5, P0 / p_atm up to
+1000, each at CFL numbers from 0.1 to 1.5 (the step ``dt = CFL h / max(c + |v|)`` recomputed every
+step). Each run is classified as
+
+- ``accurate``: finished, max relative F error <= ``TOL`` (1%);
+- ``inaccurate``: finished, larger error;
+- ``broken``: stopped at step k on particle p, with the quantity that failed (F <= 0, non-finite
+  state, left the grid, GIMP stencil overflow, max_steps).
+
+The solver's own stable-step check (``cfl_limit``) is switched off here, so that CFL > 1 shows what
+actually happens; with the default ``cfl_limit=1.0`` those runs stop at step 1 with "time step beyond
+the stable limit". All members of one interpolator run as one ``vmap``-ed, compiled call, each with
+its own status: one member breaking down stops nothing else.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import pathlib
+import time
+
+import numpy as np
+
+import jaxmpm as jm
+from jaxmpm import status as st_bits
+
+from ._methods import METHODS
+
+TOL = 1e-2
+CFLS = (0.1, 0.25, 0.5, 1.0, 1.5)
+CELLS = 8
+BETA = 200.0
+P_ATM = 1.0e5
+SHORT = {
+    st_bits.NONFINITE: "NaN",
+    st_bits.NONPOSITIVE_F: "F<=0",
+    st_bits.LEFT_GRID: "grid",
+    st_bits.CFL: "cfl",
+    st_bits.STENCIL: "stencil",
+    st_bits.SCENE_DATA: "data",
+    st_bits.MAX_STEPS: "steps",
+}
+
+
+def cases(small: bool = False) -> list[dict]:
+    """The rows of the map: ``label`` and the scene's ``beta, gamma, P0, p_atm`` and ``t_end``."""
+    base = dict(gamma=1.4, P0=2.0 * P_ATM, p_atm=P_ATM)
+    rows = []
+    targets = (2.0, 100.0, 0.05) if small else (2.0, 10.0, 100.0, 0.5, 0.2, 0.05)
+    for F in targets:
+        beta = BETA if F > 1 else -BETA
+        kind = "expand" if F > 1 else "compress"
+        rows.append(dict(label=f"{kind} to F={F:g}", beta=beta, t_end=(F - 1.0) / beta, **base))
+    for g in () if small else (1.1, 2.0, 3.0, 5.0):
+        rows.append(dict(label=f"gamma={g:g}, F=2", beta=BETA, t_end=1.0 / BETA, **{**base, "gamma": g}))
+    for r in (1000.0,) if small else (10.0, 100.0, 1000.0):
+        rows.append(
+            dict(label=f"P0/p_atm={r:g}, F=2", beta=BETA, t_end=1.0 / BETA, **{**base, "P0": r * P_ATM})
+        )
+    return rows
+
+
+def _max_steps(members, h) -> int:
+    """A bound on the steps the fastest-signalling member needs (twice its exact-solution estimate)."""
+    worst = 0.0
+    for m in members:
+        F_min = min(1.0, 1.0 + m["beta"] * m["t_end"])
+        c = np.sqrt(m["gamma"] * m["P0"] * F_min ** (1.0 - m["gamma"]))
+        speed = c + abs(m["beta"]) * CELLS * h
+        worst = max(worst, m["t_end"] * speed / (m["cfl"] * h))
+    return int(2 * worst) + 100
+
+
+def sweep(method: str, artificial_cells: int, members: list[dict]) -> list[dict]:
+    """Run every member in one vmapped, compiled call; return one result dict per member."""
+    import jax
+    import jax.numpy as jnp
+
+    pad = 100 * (CELLS + 2) + 10  # room for F = 100, artificial cells included
+    h = 1.0 / CELLS
+    max_steps = _max_steps(members, h)
+    keys = ("beta", "gamma", "P0", "p_atm", "t_end", "cfl")
+    params = {k: jnp.asarray([m[k] for m in members]) for k in keys}
+    interp = METHODS[method]()
+
+    def one(p):
+        sc = jm.GasExpansion(
+            beta=p["beta"], gamma=p["gamma"], P0=p["P0"], p_atm=p["p_atm"], h=h, cells=CELLS, pad=pad
+        )
+        sol = jm.simulate(
+            sc,
+            interp,
+            t_end=p["t_end"],
+            cfl=p["cfl"],
+            max_steps=max_steps,
+            artificial_cells=artificial_cells,
+            cfl_limit=None,
+            throw=False,
+        )
+        st = sol.state
+        finite = jnp.all(jnp.isfinite(st.x)) & jnp.all(jnp.isfinite(st.F)) & jnp.all(jnp.isfinite(st.v))
+        finite = finite & jnp.all(jnp.isfinite(st.sigma))
+        return dict(
+            status=st.status,
+            fail_step=st.fail_step,
+            fail_particle=st.fail_particle,
+            steps=st.step,
+            t=st.t,
+            F_max_rel=jm.errors(sc, st, sol.body)["F_max_rel"],
+            finite=finite,
+        )
+
+    t0 = time.perf_counter()
+    out = jax.device_get(jax.jit(jax.vmap(one))(params))
+    seconds = time.perf_counter() - t0
+    results = []
+    for i, m in enumerate(members):
+        r = dict(method=method, artificial_cells=artificial_cells, **m)
+        r.update({k: (v[i].item()) for k, v in out.items()})
+        r["max_steps"] = max_steps
+        r["batch_seconds"] = seconds
+        r["verdict"] = classify(r)
+        results.append(r)
+    return results
+
+
+def classify(r: dict) -> str:
+    """``accurate``, ``inaccurate``, or ``broken at step k on particle p: quantity``."""
+    if r["status"]:
+        what = "; ".join(st_bits.describe(int(r["status"])))
+        who = f"particle {r['fail_particle']}" if r["fail_particle"] >= 0 else "the run"
+        return f"broken at step {r['fail_step']} on {who}: {what}"
+    if not r["finite"] or not np.isfinite(r["F_max_rel"]):  # would be a silent NaN: never expected
+        return "SILENT NON-FINITE"
+    return "accurate" if r["F_max_rel"] <= TOL else "inaccurate"
+
+
+def _code(r: dict) -> str:
+    if r["verdict"] == "accurate":
+        return f"{r['F_max_rel']:.0e}"
+    if r["verdict"] == "inaccurate":
+        return f"{r['F_max_rel']:.0e}" if r["F_max_rel"] < 10 else ">10"
+    first = min(b for b in SHORT if r["status"] & b)
+    return f"{SHORT[first]}@{r['fail_step']}"
+
+
+def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
+    from matplotlib.colors import ListedColormap
+
+    from ..plotting import pyplot
+
+    plt = pyplot()
+    panels = list(dict.fromkeys((r["method"], r["artificial_cells"]) for r in results))
+    cols = 2
+    rows = (len(panels) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(6.0 * cols, 0.42 * len(labels) * rows + 1.5), squeeze=False)
+    cmap = ListedColormap(["#4caf50", "#ffc107", "#e53935"])
+    for ax, (method, ac) in zip(axes.flat, panels):
+        grid = np.zeros((len(labels), len(CFLS)))
+        for r in results:
+            if (r["method"], r["artificial_cells"]) != (method, ac):
+                continue
+            i, j = labels.index(r["label"]), CFLS.index(r["cfl"])
+            grid[i, j] = 0 if r["verdict"] == "accurate" else 1 if r["verdict"] == "inaccurate" else 2
+            ax.text(j, i, _code(r), ha="center", va="center", fontsize=6.5)
+        ax.imshow(grid, cmap=cmap, vmin=0, vmax=2, aspect="auto")
+        ax.set_xticks(range(len(CFLS)), [f"{c:g}" for c in CFLS])
+        ax.set_yticks(range(len(labels)), labels, fontsize=7)
+        ax.set_xlabel("CFL number")
+        ax.set_title(f"{method}, {'artificial cells' if ac else 'no artificial cells'}", fontsize=9)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.axis("off")
+    fig.suptitle(
+        "Gas expansion u = beta t X: green accurate (max rel F err <= 1%, shown), amber inaccurate, "
+        "red broken (quantity@step)",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def markdown(results: list[dict], labels: list[str]) -> str:
+    lines = []
+    for method, ac in dict.fromkeys((r["method"], r["artificial_cells"]) for r in results):
+        lines.append(f"**{method}, {'artificial cells' if ac else 'no artificial cells'}**\n")
+        lines.append("| case | " + " | ".join(f"CFL {c:g}" for c in CFLS) + " |")
+        lines.append("|---|" + "---|" * len(CFLS))
+        for label in labels:
+            cells = []
+            for c in CFLS:
+                r = next(
+                    r
+                    for r in results
+                    if (r["method"], r["artificial_cells"], r["label"], r["cfl"]) == (method, ac, label, c)
+                )
+                cells.append(_code(r))
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def run_all(small: bool = False, methods=None, artificial_cells=(0, 1)) -> tuple[list[dict], list[str]]:
+    import jax
+
+    rows = cases(small)
+    labels = [r["label"] for r in rows]
+    members = [dict(r, cfl=c) for r in rows for c in CFLS]
+    methods = methods or (("SPQ", "MPQ") if small else tuple(METHODS))
+    results = []
+    for method in methods:
+        for ac in artificial_cells:
+            results.extend(sweep(method, ac, members))
+        jax.clear_caches()
+    return results, labels
+
+
+def main(out: str, small: bool = False) -> dict:
+    """Run the sweep; write ``stability.{md,csv,json,png}`` to ``out``."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    outdir = pathlib.Path(out)
+    outdir.mkdir(parents=True, exist_ok=True)
+    results, labels = run_all(small)
+    counts = {v: 0 for v in ("accurate", "inaccurate", "broken")}
+    for r in results:
+        counts[r["verdict"].split(" ")[0]] = counts.get(r["verdict"].split(" ")[0], 0) + 1
+    head = (
+        "# Stability map\n\n"
+        f"Gas expansion u = beta t X, {CELLS} cells x 2 ppc, |beta| = {BETA:g} 1/s, p_atm = {P_ATM:g} Pa "
+        f"unless stated; FLIP, USL, float64, cfl_limit off. Each cell: the max relative F error at the end "
+        f"(accurate <= {TOL:g}), or the first failed quantity and its step. "
+        f"{counts['accurate']} accurate, {counts['inaccurate']} inaccurate, {counts['broken']} broken, "
+        f"{counts.get('SILENT', 0)} silent non-finite.\n\n"
+    )
+    text = head + markdown(results, labels)
+    (outdir / "stability.md").write_text(text)
+    fields = list(results[0])
+    with open(outdir / "stability.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        w.writerows(results)
+    (outdir / "stability.json").write_text(json.dumps(results, indent=1, default=float))
+    figure(results, labels, outdir / "stability.png")
+    print(text)
+    return dict(results=results, labels=labels)

@@ -1,0 +1,58 @@
+"""Artificial viscosity for shocks (von Neumann & Richtmyer 1950, with Landshoff's linear term).
+
+A shock is a jump that the grid cannot resolve; without dissipation MPM rings behind it. Under
+compression, a bulk viscous pressure
+
+    q = rho (c_quad (h d)^2 + c_lin c h |d|),     d = dJ/dt / J < 0,
+
+is added to the pressure (``sigma -= q I``); under expansion ``q = 0``, so rarefactions and smooth
+flows are untouched. ``rho = rho0 / J`` is the current density, ``c`` the material's sound speed,
+``h`` the grid spacing (the length over which the grid velocity jumps), and ``d`` the volumetric
+rate of deformation of the step, ``(J_new - J_old) / (dt J_new)``. This is the form of Wilkins,
+"Use of artificial viscosity in multidimensional fluid dynamic calculations" (J. Comput. Phys.
+36, 1980), as Uintah's MPM applies it per particle.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._checks import check_nonnegative
+from ._util import as_float
+from .materials import AbstractMaterial
+
+
+def _det(F):
+    return F[..., 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)
+
+
+class ArtificialViscosity(eqx.Module):
+    """Bulk artificial viscosity, active in compression only.
+
+    Attributes:
+        c_quad: quadratic (von Neumann-Richtmyer) coefficient, dimensionless (default 2.0).
+        c_lin: linear (Landshoff) coefficient, dimensionless (default 0.2).
+    """
+
+    c_quad: Float[Array, ""] = eqx.field(converter=as_float, default=2.0)
+    c_lin: Float[Array, ""] = eqx.field(converter=as_float, default=0.2)
+
+    def __check_init__(self):
+        check_nonnegative("c_quad", self.c_quad)
+        check_nonnegative("c_lin", self.c_lin)
+
+    def pressure(self, material: AbstractMaterial, F_old, F_new, dt, rho0, h) -> Float[Array, " n"]:
+        """The viscous pressure ``q >= 0`` of each particle after a step from ``F_old`` to ``F_new``."""
+        J_old, J_new = _det(F_old), _det(F_new)
+        rate = (J_new - J_old) / (dt * J_new)
+        compress = jnp.minimum(rate, 0.0)
+        c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)
+        rho = rho0 / J_new
+        return rho * (self.c_quad * jnp.square(h * compress) + self.c_lin * c * h * (-compress))
+
+    def stress(self, material: AbstractMaterial, F_old, F_new, dt, rho0, h) -> Float[Array, "n dim dim"]:
+        """The viscous stress ``-q I`` to add to each particle's Cauchy stress."""
+        q = self.pressure(material, F_old, F_new, dt, rho0, h)
+        dim = F_new.shape[-1]
+        return -q[:, None, None] * jnp.eye(dim, dtype=F_new.dtype)[None]
