@@ -171,7 +171,13 @@ def advance(
         active = remaining > 0
         dt_n = jnp.where(active & last, remaining, h_dt)  # past the end: a harmless step, discarded
         t_new = jnp.where(last, dt.t_end, state.t + dt_n)  # lands on t_end exactly
-        return step(model, s, state, dt_n, limit, active=active, t_new=t_new), None
+        # Past t_end (or after a breakdown) nothing changes: lax.cond skips the step's work, so a
+        # generous max_steps costs little. (Under vmap the branches become a select and both run.)
+        go = active & (state.status == 0)
+        new = jax.lax.cond(
+            go, lambda st: step(model, s, st, dt_n, limit, active=active, t_new=t_new), lambda st: st, state
+        )
+        return new, None
 
     def scan(state, n):
         return jax.lax.scan(one, state, None, length=n)[0] if n > 0 else state
