@@ -6,9 +6,11 @@ first (the CLI, experiments, notebooks and tests do).
 
 from importlib.metadata import PackageNotFoundError, version
 
+from . import calibrate as calibrate
 from . import exact as exact
 from . import long_run as long_run
 from . import metrics as metrics
+from . import reference as reference
 from . import sensitivity as sensitivity
 from . import status as status
 from ._simulate import (
@@ -30,6 +32,8 @@ from ._step import Model as Model
 from ._step import initial_state as initial_state
 from ._step import setup as setup
 from ._step import step as step
+from .ensemble import Ensemble as Ensemble
+from .ensemble import ensemble as ensemble
 from .grid import Grid as Grid
 from .interpolators import (
     CPDI as CPDI,
@@ -66,6 +70,7 @@ from .particles import State as State
 from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
 from .scenes import GasExpansion as GasExpansion
+from .scenes import GasSlab as GasSlab
 from .scenes import Manufactured as Manufactured
 from .scenes import Riemann as Riemann
 from .scenes import VacuumExpansion as VacuumExpansion

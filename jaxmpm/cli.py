@@ -87,6 +87,35 @@ def _parser() -> argparse.ArgumentParser:
         help="add d(F_rms_rel)/d(NAME) for continuous parameters (scene parameters, h, dt)",
     )
 
+    cal = sub.add_parser("calibrate", help="fit constants (gamma, P0, rho0) to a free-surface trajectory")
+    cal.add_argument("scene", help="scene name (gas-slab)")
+    cal.add_argument("params", nargs="*", metavar="name=value", help="scene parameters (the model's)")
+    cal.add_argument("--data", required=True, metavar="FILE.csv", help="header and columns t,x_free")
+    cal.add_argument("--fit", default="gamma,P0", metavar="NAME[,NAME...]", help="parameters to fit")
+    cal.add_argument("--start", metavar="NAME=V[,NAME=V...]", help="start values (default: the scene's)")
+    cal.add_argument("--interpolator", default="cpdi", choices=["spq", "gimp", "cpgimp", "cpdi", "mpq"])
+    cal.add_argument("--method", default="lbfgs", choices=["lbfgs", "adam"])
+    cal.add_argument("--iterations", type=int, default=50, help="the most iterations (50)")
+    cal.add_argument("--dt", type=float, help="model time step (default: CFL 0.2 at the start values)")
+    cal.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    cal.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    ens = sub.add_parser("ensemble", help="run a batch of parameter sets in one compiled, sharded call")
+    ens.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
+    ens.add_argument("params", nargs="*", metavar="name=value", help="fixed scene parameters")
+    ens.add_argument("--vary", action="append", required=True, metavar="NAME=LOW:HIGH", help="repeatable")
+    ens.add_argument("--members", type=int, required=True, help="members (uniform random in the ranges)")
+    ens.add_argument("--seed", type=int, default=0, help="random seed of the sample (0)")
+    ens.add_argument("--interpolator", default="cpdi", choices=["spq", "gimp", "cpgimp", "cpdi", "mpq"])
+    ens.add_argument("--transfer", default="flip", choices=["flip", "pic", "apic"])
+    ens.add_argument("--artificial-cells", type=int, default=0, metavar="N")
+    ens.add_argument("--dt", type=float, help="time step, with --steps (default: run to --t-end)")
+    ens.add_argument("--steps", type=int, help="number of steps, with --dt")
+    ens.add_argument("--t-end", type=float, metavar="T", help="end time (default: two wave transits, 2 L/c0)")
+    ens.add_argument("--cfl", type=float, default=0.5, help="with --t-end: dt = CFL h / max(c + |v|)")
+    ens.add_argument("--max-steps", type=int, metavar="N", help="with --t-end (default: 3x an estimate)")
+    ens.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
     rs = sub.add_parser("resume", help="continue a run saved with `run --out FILE`")
     rs.add_argument("file", help="the saved run (.npz)")
     rs.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -348,6 +377,213 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
     return 0
 
 
+def _named_values(text: str, what: str) -> dict:
+    out = {}
+    for item in [i for i in text.split(",") if i]:
+        key, sep, raw = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[key] = float(raw)
+        except ValueError:
+            raise UsageError(f"{what} takes NAME=VALUE[,NAME=VALUE...], got {item!r}") from None
+    return out
+
+
+def _read_trajectory(path: str):
+    import csv
+
+    import numpy as np
+
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise UsageError(f"--data: cannot read {path}: {e.strerror}") from None
+    if not rows or not {"t", "x_free"} <= set(rows[0]):
+        raise UsageError(f"--data: {path} needs a header with the columns t,x_free")
+    try:
+        t = np.array([float(r["t"]) for r in rows])
+        x = np.array([float(r["x_free"]) for r in rows])
+    except (TypeError, ValueError):
+        raise UsageError(f"--data: {path} has a value in t or x_free that is not a number") from None
+    if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(x)):
+        raise UsageError("--data: need at least 2 rows of finite t,x_free")
+    if t[0] < 0 or np.any(np.diff(t) <= 0):
+        raise UsageError("--data: t must start at >= 0 and increase")
+    return t, x
+
+
+def _initial_speed(scene) -> float:
+    import jax.numpy as jnp
+
+    F = jnp.ones((1, 1), dtype=scene.h.dtype)
+    return float(scene.material().sound_speed(F, scene.rho0))
+
+
+def _cmd_calibrate(args) -> int:
+    import jaxmpm as jm
+
+    scene = _scene_from(args.scene, args.params)
+    if scene.name != "gas-slab":
+        raise UsageError(
+            f"calibrate fits a free-surface trajectory: the scene must be gas-slab, got {args.scene}"
+        )
+    t, x = _read_trajectory(args.data)
+    names = [n for n in args.fit.split(",") if n]
+    start = _named_values(args.start, "--start") if args.start else {}
+    try:
+        jm.sensitivity.check_names(scene, names)
+        if args.dt is not None:
+            jm._checks.check_positive("dt", args.dt)
+        start_scene = type(scene)(**{**scene.parameter_values(), **start})
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / _initial_speed(start_scene)
+    try:
+        fit = jm.calibrate.calibrate(
+            scene,
+            jm.INTERPOLATORS[args.interpolator](),
+            t,
+            x,
+            fit=names,
+            starts=start,
+            dt=dt,
+            method=args.method,
+            iterations=args.iterations,
+            progress=False if args.no_progress else None,
+        )
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    except jm.calibrate.CalibrationError as e:
+        print(f"jaxmpm: {e}", file=sys.stderr)
+        return 3
+    out = dict(
+        fitted=fit.fitted,
+        loss=fit.loss,
+        iterations=fit.iterations,
+        wall_s=fit.wall_s,
+        scene=args.scene,
+        interpolator=args.interpolator,
+        method=args.method,
+        dt=dt,
+        start={n: float(start.get(n, float(getattr(scene, n)))) for n in names},
+        loss_history=[float(v) for v in fit.history[:, 0]],
+    )
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print("fitted: " + "  ".join(f"{k}={v:.10g}" for k, v in fit.fitted.items()))
+        print(f"loss={fit.loss:.6g}  iterations={fit.iterations}  wall_s={fit.wall_s:.3f}  dt={dt:.6g}")
+    return 0
+
+
+def _cmd_ensemble(args) -> int:
+    import time
+
+    import numpy as np
+
+    import jaxmpm as jm
+
+    scene = _scene_from(args.scene, args.params)
+    check = jm.sensitivity.continuous_parameters(scene)
+    ranges = {}
+    for item in args.vary:
+        key, sep, rng = item.partition("=")
+        lo, sep2, hi = rng.partition(":")
+        if not sep or not sep2:
+            raise UsageError(f"--vary takes NAME=LOW:HIGH, got {item!r}")
+        if key not in check or key == "dt":
+            raise UsageError(
+                f"--vary: {key!r} is not a continuous scene parameter; allowed: {', '.join(check[:-1])}"
+            )
+        try:
+            ranges[key] = (float(lo), float(hi))
+        except ValueError:
+            raise UsageError(f"--vary: LOW and HIGH must be numbers, got {item!r}") from None
+        if not all(math.isfinite(v) for v in ranges[key]) or ranges[key][0] > ranges[key][1]:
+            raise UsageError(f"--vary: need finite LOW <= HIGH, got {item!r}")
+    if args.members < 1:
+        raise UsageError(f"--members must be an integer >= 1, got {args.members}")
+    rng = np.random.default_rng(args.seed)
+    vary = {k: rng.uniform(lo, hi, args.members) for k, (lo, hi) in ranges.items()}
+    settings = dict(transfer=jm.TRANSFERS[args.transfer](), artificial_cells=args.artificial_cells)
+    if args.dt is not None or args.steps is not None:
+        if args.dt is None or args.steps is None or args.t_end is not None:
+            raise UsageError("give --dt and --steps together, or --t-end (or neither: two wave transits)")
+        timing = dict(dt=args.dt, steps=args.steps)
+    else:
+        # the fastest member sets the bound: sound speeds at the ranges' corners
+        import itertools
+
+        speeds = []
+        for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in ranges.items()]):
+            try:
+                speeds.append(_initial_speed(type(scene)(**{**scene.parameter_values(), **dict(corner)})))
+            except ValueError as e:
+                raise UsageError(f"--vary: {e}") from None
+        c_min, c_max = min(speeds), max(speeds)
+        t_end = args.t_end if args.t_end is not None else 2.0 * float(scene.length) / c_min
+        max_steps = args.max_steps or int(3 * t_end * c_max / (args.cfl * float(scene.h))) + 100
+        timing = dict(t_end=t_end, cfl=args.cfl, max_steps=max_steps)
+    t0 = time.perf_counter()
+    try:
+        ens = jm.ensemble(scene, jm.INTERPOLATORS[args.interpolator](), vary, **timing, **settings)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    wall = time.perf_counter() - t0
+    st = ens.solution.state
+    results = []
+    for i in range(args.members):
+        member = ens.member(i)
+        r = dict(
+            params={k: float(v[i]) for k, v in vary.items()}, status=int(ens.status[i]), t=float(st.t[i])
+        )
+        r["steps"] = int(st.step[i])
+        if ens.status[i]:
+            r["failure"] = dict(
+                step=int(st.fail_step[i]),
+                particle=int(st.fail_particle[i]),
+                quantities=jm.status.describe(int(ens.status[i])),
+            )
+        if scene.name == "gas-slab":
+            r["x_free"] = float(jm.scenes.gas_slab.free_surface(member.state, member.body))
+        if scene.exact is not None and not ens.status[i]:  # a failed member's error says nothing
+            err = jm.errors(
+                type(scene)(**{**scene.parameter_values(), **r["params"]}), member.state, member.body
+            )
+            r["F_max_rel"] = float(err["F_max_rel"])
+        results.append(r)
+    out = dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        members=args.members,
+        devices=ens.devices,
+        ok=int(np.sum(ens.ok)),
+        failed=int(np.sum(~ens.ok)),
+        wall_s=wall,
+        timing={k: float(v) if k != "max_steps" and k != "steps" else int(v) for k, v in timing.items()},
+        results=results,
+    )
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(
+            f"{args.members} members on {ens.devices} device(s): {out['ok']} ok, {out['failed']} failed, "
+            f"wall_s={wall:.3f}"
+        )
+        for i, r in enumerate(results):
+            extra = f"  x_free={r['x_free']:.6g}" if "x_free" in r else ""
+            extra += f"  F_max_rel={r['F_max_rel']:.3g}" if "F_max_rel" in r else ""
+            fail = (
+                f"  FAILED at step {r['failure']['step']}: {r['failure']['quantities'][0]}"
+                if "failure" in r
+                else ""
+            )
+            print(f"{i:>5} " + " ".join(f"{k}={v:.6g}" for k, v in r["params"].items()) + extra + fail)
+    return 0
+
+
 def _cmd_study(args) -> int:
     import importlib
 
@@ -365,9 +601,15 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = _parser().parse_args(argv)
-        return {"scenes": _cmd_scenes, "run": _cmd_run, "resume": _cmd_resume, "study": _cmd_study}[
-            args.command
-        ](args)
+        commands = {
+            "scenes": _cmd_scenes,
+            "run": _cmd_run,
+            "resume": _cmd_resume,
+            "study": _cmd_study,
+            "calibrate": _cmd_calibrate,
+            "ensemble": _cmd_ensemble,
+        }
+        return commands[args.command](args)
     except UsageError as e:
         print(f"jaxmpm: error: {e}", file=sys.stderr)
         return 2

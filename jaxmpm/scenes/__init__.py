@@ -2,11 +2,12 @@
 
 from ._base import AbstractScene as AbstractScene
 from .gas_expansion import GasExpansion as GasExpansion
+from .gas_slab import GasSlab as GasSlab
 from .manufactured import Manufactured as Manufactured
 from .riemann import Riemann as Riemann
 from .vacuum_expansion import VacuumExpansion as VacuumExpansion
 from .vibrating_bar import VibratingBar as VibratingBar
 
 SCENES: dict[str, type[AbstractScene]] = {
-    cls.name: cls for cls in (GasExpansion, VibratingBar, Manufactured, VacuumExpansion, Riemann)
+    cls.name: cls for cls in (GasExpansion, VibratingBar, Manufactured, VacuumExpansion, Riemann, GasSlab)
 }

@@ -1,0 +1,154 @@
+"""Ensembles: many parameter sets in one compiled, ``vmap``-ed call, sharded over every local device.
+
+``ensemble(scene, interpolator, vary={"gamma": array, "P0": array}, dt=..., steps=...)`` runs one
+member per row of ``vary`` (the other parameters keep ``scene``'s values). Every member carries its
+own status: a member that breaks down stops where it broke (its last good state kept) while the
+others finish. The batch is laid out over all local devices with ``jax.sharding`` (a 1D mesh over the
+member axis; the batch is padded to a multiple of the device count and the padding dropped), so the
+same call uses one CPU, four forced host devices
+(``XLA_FLAGS=--xla_force_host_platform_device_count=4``) or every GPU of a machine.
+
+Several hosts: start each process with ``jax.distributed.initialize()`` (coordinator address, process
+count and id from the cluster's environment, e.g. SLURM), then call ``ensemble(..., devices=
+jax.devices())``: the mesh then spans every host's devices and each process computes its own shard.
+Gather results with ``jax.experimental.multihost_utils.process_allgather``. Nothing else changes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from . import status as st_bits
+from ._simulate import Solution, _prepare, _run_jit, checkpoint_block
+from .interpolators import AbstractInterpolator
+from .scenes import AbstractScene
+from .sensitivity import check_names
+
+
+@dataclasses.dataclass
+class Ensemble:
+    """The result of ``ensemble``.
+
+    Attributes:
+        params: the varied parameters, name to array ``(members,)``.
+        solution: a ``Solution`` whose arrays have a leading member axis.
+        status: the status bitmask per member (0: healthy).
+        devices: how many devices the batch was spread over.
+    """
+
+    params: dict
+    solution: Solution
+    status: np.ndarray
+    devices: int
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.status == 0
+
+    def failures(self) -> list[dict]:
+        """One dict per member that broke down: member, step, particle, quantities and its parameters."""
+        out = []
+        st = self.solution.state
+        for i in np.flatnonzero(self.status):
+            out.append(
+                dict(
+                    member=int(i),
+                    step=int(st.fail_step[i]),
+                    particle=int(st.fail_particle[i]),
+                    quantities=st_bits.describe(int(self.status[i])),
+                    params={k: float(v[i]) for k, v in self.params.items()},
+                )
+            )
+        return out
+
+    def member(self, i: int) -> Solution:
+        """Member ``i``'s solution (as ``simulate`` would return it)."""
+        return jax.tree_util.tree_map(lambda a: a[i], self.solution)
+
+
+def _with(scene: AbstractScene, values: dict) -> AbstractScene:
+    names = tuple(values)
+    return eqx.tree_at(lambda s: tuple(getattr(s, n) for n in names), scene, tuple(values[n] for n in names))
+
+
+def ensemble(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    vary: dict,
+    *,
+    devices=None,
+    **simulate_kwargs,
+) -> Ensemble:
+    """Run one member per row of ``vary`` in one compiled call, with a status per member.
+
+    Args:
+        scene: the base scene.
+        interpolator: the method.
+        vary: continuous parameter names (scene parameters, ``dt``, or with ``t_end``: ``t_end`` and
+            ``cfl``) to arrays of equal length: one value per member.
+        devices: the devices to shard the members over (default: every local device).
+        **simulate_kwargs: as for ``simulate`` (``dt``, ``steps`` or ``t_end``, ``max_steps``, ...);
+            ``throw`` is always ``False``: failures are read from the status.
+
+    Returns:
+        An ``Ensemble``.
+    """
+    if not vary:
+        raise ValueError("vary must name at least one parameter with its values per member")
+    run_names = {"dt", "t_end", "cfl"}
+    check_names(scene, [k for k in vary if k not in run_names] or ["dt"])
+    for k in vary:
+        if k in run_names and k not in simulate_kwargs:
+            raise ValueError(f"vary names {k!r}, so pass a value for {k} too (it gives the mode and dtype)")
+    arrays = {k: np.asarray(v, dtype=np.float64) for k, v in vary.items()}
+    sizes = {k: a.shape for k, a in arrays.items()}
+    if any(a.ndim != 1 for a in arrays.values()) or len(set(sizes.values())) != 1:
+        raise ValueError(f"every vary entry must be a 1D array of the same length, got shapes {sizes}")
+    n = next(iter(arrays.values())).size
+    if n < 1:
+        raise ValueError("vary must hold at least one member")
+    bad = [k for k, a in arrays.items() if not np.all(np.isfinite(a))]
+    if bad:
+        raise ValueError(f"vary values must be finite; not finite in {bad}")
+    simulate_kwargs.pop("throw", None)
+    model, dt, steps, saveat = _prepare(scene, interpolator, **simulate_kwargs)
+    block = checkpoint_block(simulate_kwargs.get("checkpoint", False), steps)
+
+    devices = list(jax.local_devices() if devices is None else devices)
+    k = len(devices)
+    padded = -(-n // k) * k
+    dtype = scene.h.dtype
+    batch = {
+        name: jnp.asarray(np.concatenate([a, np.repeat(a[-1:], padded - n)]), dtype=dtype)
+        for name, a in arrays.items()
+    }
+    if k > 1:
+        sharding = NamedSharding(Mesh(np.asarray(devices), ("members",)), PartitionSpec("members"))
+        batch = jax.device_put(batch, sharding)
+
+    def one(values):
+        scene_vals = {k: v for k, v in values.items() if k not in run_names}
+        m = eqx.tree_at(lambda md: md.scene, model, _with(model.scene, scene_vals)) if scene_vals else model
+        d = dt
+        if "dt" in values:
+            d = values["dt"]
+        elif "t_end" in values or "cfl" in values:
+            d = eqx.tree_at(
+                lambda z: (z.t_end, z.cfl), dt, (values.get("t_end", dt.t_end), values.get("cfl", dt.cfl))
+            )
+        return _run_jit(m, d, steps, saveat, block)
+
+    sol = jax.jit(jax.vmap(one))(batch)
+    sol = jax.tree_util.tree_map(lambda a: a[:n], sol)
+    return Ensemble(
+        params={name: a for name, a in arrays.items()},
+        solution=sol,
+        status=np.asarray(sol.state.status),
+        devices=k,
+    )
