@@ -25,7 +25,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import status as st_bits
-from ._simulate import Solution, _prepare, _run_jit, checkpoint_block
+from ._simulate import Solution, _prepare, _run, checkpoint_block
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .sensitivity import check_names
@@ -72,6 +72,28 @@ class Ensemble:
         return jax.tree_util.tree_map(lambda a: a[i], self.solution)
 
 
+RUN_NAMES = ("dt", "t_end", "cfl")
+
+
+@eqx.filter_jit
+def _run_batch(model, dt, batch: dict, steps: int, saveat, block):
+    """Every member of ``batch`` in one compiled, vmap-ed call (compiled once per structure)."""
+
+    def one(values):
+        scene_vals = {k: v for k, v in values.items() if k not in RUN_NAMES}
+        m = eqx.tree_at(lambda md: md.scene, model, _with(model.scene, scene_vals)) if scene_vals else model
+        d = dt
+        if "dt" in values:
+            d = values["dt"]
+        elif "t_end" in values or "cfl" in values:
+            d = eqx.tree_at(
+                lambda z: (z.t_end, z.cfl), dt, (values.get("t_end", dt.t_end), values.get("cfl", dt.cfl))
+            )
+        return _run(m, d, steps, saveat, block)
+
+    return jax.vmap(one)(batch)
+
+
 def _with(scene: AbstractScene, values: dict) -> AbstractScene:
     names = tuple(values)
     return eqx.tree_at(lambda s: tuple(getattr(s, n) for n in names), scene, tuple(values[n] for n in names))
@@ -101,10 +123,9 @@ def ensemble(
     """
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
-    run_names = {"dt", "t_end", "cfl"}
-    check_names(scene, [k for k in vary if k not in run_names] or ["dt"])
+    check_names(scene, [k for k in vary if k not in RUN_NAMES] or ["dt"])
     for k in vary:
-        if k in run_names and k not in simulate_kwargs:
+        if k in RUN_NAMES and k not in simulate_kwargs:
             raise ValueError(f"vary names {k!r}, so pass a value for {k} too (it gives the mode and dtype)")
     arrays = {k: np.asarray(v, dtype=np.float64) for k, v in vary.items()}
     sizes = {k: a.shape for k, a in arrays.items()}
@@ -132,19 +153,7 @@ def ensemble(
         sharding = NamedSharding(Mesh(np.asarray(devices), ("members",)), PartitionSpec("members"))
         batch = jax.device_put(batch, sharding)
 
-    def one(values):
-        scene_vals = {k: v for k, v in values.items() if k not in run_names}
-        m = eqx.tree_at(lambda md: md.scene, model, _with(model.scene, scene_vals)) if scene_vals else model
-        d = dt
-        if "dt" in values:
-            d = values["dt"]
-        elif "t_end" in values or "cfl" in values:
-            d = eqx.tree_at(
-                lambda z: (z.t_end, z.cfl), dt, (values.get("t_end", dt.t_end), values.get("cfl", dt.cfl))
-            )
-        return _run_jit(m, d, steps, saveat, block)
-
-    sol = jax.jit(jax.vmap(one))(batch)
+    sol = _run_batch(model, dt, batch, steps, saveat, block)
     sol = jax.tree_util.tree_map(lambda a: a[:n], sol)
     return Ensemble(
         params={name: a for name, a in arrays.items()},

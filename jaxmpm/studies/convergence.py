@@ -84,7 +84,7 @@ def cases(small: bool = False) -> list[Case]:
         ),
         Case(
             "gas-expansion (talk)",
-            lambda n: jm.GasExpansion(cells=n, h=1.0 / n),
+            lambda n: jm.GasExpansion(cells=n, h=1.0 / n, pad=n // 2 + 4),  # room for F = 1.25
             lambda sc: 1.25e-3,
             res,
             note="beta = 200, L = 1, no artificial cells",
