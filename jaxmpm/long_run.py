@@ -112,6 +112,15 @@ def _interpolator_from(meta: dict):
 
 
 def _scene_params(scene) -> dict:
+    import dataclasses
+
+    named = scene.parameters()
+    for f in dataclasses.fields(scene):
+        if f.name not in named and getattr(scene, f.name) is not f.default:
+            raise ValueError(
+                f"a saved run records the scene by its parameters, and {f.name} of {scene.name} is not one "
+                f"(a Python function cannot be saved); run it with simulate instead"
+            )
     return scene.parameter_values()
 
 

@@ -383,3 +383,12 @@ def test_run_cli_to_an_end_time(capsys):
         == 2
     )
     assert "model must be one of" in capsys.readouterr().err
+
+
+def test_long_run_refuses_a_scene_it_cannot_record(tmp_path):
+    """A saved run records the scene by name and parameters; a Python displacement field would be
+    silently replaced by the default one on resume, so it is refused up front."""
+    sc = jm.Manufactured(displacement_fn=lambda s, X, t: s.A * jnp.sin(X) * t)
+    with pytest.raises(ValueError, match="displacement_fn of manufactured is not one"):
+        jm.long_run.run(sc, jm.CPDI(), dt=1e-3, steps=3, chunk=2, out=tmp_path / "x.npz", progress=False)
+    assert not (tmp_path / "x.npz").exists()
