@@ -179,7 +179,7 @@ def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
         "red broken (quantity@step)",
         fontsize=9,
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.985))  # leave the top strip to the title
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
