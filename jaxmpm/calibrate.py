@@ -206,17 +206,19 @@ def calibrate(
     failed: dict[int, str] = {}
     frozen: dict[int, np.ndarray] = {}
 
-    def physical(th):
-        return {n: np.asarray(v) for n, v in to_physical_batch(to_physical, th, start_vals).items()}
+    def physical(th, starts_):
+        return {n: np.asarray(v) for n, v in to_physical_batch(to_physical, th, starts_).items()}
+
+    run_starts = dict(start_vals)  # a broken start's slot takes a live start's values (see below)
 
     it = 0
     try:
         for it in range(1, iterations + 1):
-            new_theta, new_state, value = update_all(theta, state, start_vals)
+            new_theta, new_state, value = update_all(theta, state, run_starts)
             value = np.asarray(value)
             broke = alive & ~(np.isfinite(value) & np.all(np.isfinite(np.asarray(new_theta)), axis=1))
             for b in np.flatnonzero(broke):  # say why, from a plain run at that start's trial values
-                trial = {n: float(v[b]) for n, v in physical(theta).items()}
+                trial = {n: float(v[b]) for n, v in physical(theta, run_starts).items()}
                 why = _why(scene, interpolator, trial, t_data, dt, simulate_kwargs)
                 failed[int(b)] = f"iteration {it}: {why}"
                 frozen[int(b)] = np.asarray(theta[b])
@@ -234,6 +236,7 @@ def calibrate(
             src = jnp.asarray(np.where(alive, np.arange(n_starts), int(np.flatnonzero(alive)[0])))
             theta = new_theta[src]
             state = jax.tree_util.tree_map(lambda a: a[src], new_state)
+            run_starts = {n: v[src] for n, v in run_starts.items()}
             value = np.where(alive, value, np.nan)
             history.append(value)
             if bar is not None:
@@ -247,13 +250,13 @@ def calibrate(
     finally:
         if bar is not None:
             bar.close()
-    final = np.where(alive, np.asarray(jax.jit(jax.vmap(loss_fn))(theta, start_vals)), np.nan)
+    final = np.where(alive, np.asarray(jax.jit(jax.vmap(loss_fn))(theta, run_starts)), np.nan)
     history.append(final)
     wall = time.perf_counter() - t0
     theta = np.array(theta)
     for b, th in frozen.items():
         theta[b] = th
-    fitted_all = physical(jnp.asarray(theta))
+    fitted_all = physical(jnp.asarray(theta), start_vals)  # live slots kept their own starts
     best = int(np.nanargmin(final))
     return Fit(
         fitted={n: float(v[best]) for n, v in fitted_all.items()},
