@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from . import status as st_bits
-from ._util import tree_where
+from ._util import det, tree_where
 from .boundaries import ArtificialLayer, artificial_layer, traction_points, wall_mask
 from .grid import Grid
 from .interpolators import AbstractInterpolator
@@ -126,10 +126,6 @@ def initial_state(model: Model, s: Setup) -> State:
     )
 
 
-def _det(F: Float[Array, "n dim dim"]) -> Float[Array, " n"]:
-    return F[:, 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)
-
-
 def _particle_corners(state: State, body: Body):
     return None if state.corners is None else state.corners[body.corner_ids]
 
@@ -188,7 +184,7 @@ def step(
     v_n = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
 
     # 2. Forces: internal, body force, tractions at the material boundary points.
-    V = body.V0 * _det(F)
+    V = body.V0 * det(F)
     f_int = jnp.einsum("nab,nkb->nka", state.sigma, stencil.dw) * V[:, None, None]
     f = -grid.scatter(stencil.gidx, f_int)
     if scene.body_force is not None:
@@ -258,7 +254,7 @@ def step(
     if corners is not None:
         finite = finite & jnp.isfinite(corners[body.corner_ids]).all((1, 2))
     checks.append((st_bits.NONFINITE, ~finite))
-    checks.append((st_bits.NONPOSITIVE_F, _det(F_new) <= 0.0))
+    checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
     left_grid = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))

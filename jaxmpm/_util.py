@@ -13,3 +13,8 @@ def as_float(x) -> Array:
 def tree_where(pred, on_true, on_false):
     """Leafwise ``jnp.where(pred, a, b)`` over two pytrees of the same structure."""
     return jax.tree.map(lambda a, b: jnp.where(pred, a, b), on_true, on_false)
+
+
+def det(F):
+    """``det F`` of each particle, ``F`` of shape ``(..., dim, dim)`` (the entry itself in 1D)."""
+    return F[..., 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)

@@ -41,6 +41,7 @@ from ._checks import check_int, check_positive
 from ._simulate import SaveAt, simulate
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
+from .scenes.gas_slab import free_surface
 from .sensitivity import check_names
 
 
@@ -79,11 +80,8 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
     sol = simulate(
         scene, interpolator, dt=dt, steps=steps, saveat=SaveAt(every=1, fields=fields), throw=False, **kwargs
     )
-    h, body = sol.history, sol.body
-    if "corners" in h:  # MPQ: the tracked corner (as free_surface does for one state)
-        xr = h["corners"][:, body.corner_ids[-1, 1], 0]
-    else:
-        xr = h["x"][:, -1, 0] + h["F"][:, -1, 0, 0] * body.r0[-1, 0]
+    h = sol.history
+    xr = free_surface(h["x"], h["F"], h.get("corners"), sol.body)
     bad = sol.state.status != 0
     return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, xr))
 

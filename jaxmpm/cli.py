@@ -414,13 +414,6 @@ def _read_trajectory(path: str):
     return t, x
 
 
-def _initial_speed(scene) -> float:
-    import jax.numpy as jnp
-
-    F = jnp.ones((1, 1), dtype=scene.h.dtype)
-    return float(scene.material().sound_speed(F, scene.rho0))
-
-
 def _cmd_calibrate(args) -> int:
     import jaxmpm as jm
 
@@ -439,7 +432,7 @@ def _cmd_calibrate(args) -> int:
         start_scene = type(scene)(**{**scene.parameter_values(), **start})
     except ValueError as e:
         raise UsageError(str(e)) from None
-    dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / _initial_speed(start_scene)
+    dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / float(start_scene.wave_speed)
     try:
         fit = jm.calibrate.calibrate(
             scene,
@@ -519,7 +512,7 @@ def _cmd_ensemble(args) -> int:
         speeds = []
         for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in ranges.items()]):
             try:
-                speeds.append(_initial_speed(type(scene)(**{**scene.parameter_values(), **dict(corner)})))
+                speeds.append(float(type(scene)(**{**scene.parameter_values(), **dict(corner)}).wave_speed))
             except ValueError as e:
                 raise UsageError(f"--vary: {e}") from None
         c_min, c_max = min(speeds), max(speeds)
@@ -547,7 +540,8 @@ def _cmd_ensemble(args) -> int:
                 quantities=jm.status.describe(int(ens.status[i])),
             )
         if scene.name == "gas-slab":
-            r["x_free"] = float(jm.scenes.gas_slab.free_surface(member.state, member.body))
+            ms = member.state
+            r["x_free"] = float(jm.scenes.gas_slab.free_surface(ms.x, ms.F, ms.corners, member.body))
         if scene.exact is not None and not ens.status[i]:  # a failed member's error says nothing
             err = jm.errors(
                 type(scene)(**{**scene.parameter_values(), **r["params"]}), member.state, member.body

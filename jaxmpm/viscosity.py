@@ -19,12 +19,8 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_nonnegative
-from ._util import as_float
+from ._util import as_float, det
 from .materials import AbstractMaterial
-
-
-def _det(F):
-    return F[..., 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)
 
 
 class ArtificialViscosity(eqx.Module):
@@ -44,7 +40,7 @@ class ArtificialViscosity(eqx.Module):
 
     def pressure(self, material: AbstractMaterial, F_old, F_new, dt, rho0, h) -> Float[Array, " n"]:
         """The viscous pressure ``q >= 0`` of each particle after a step from ``F_old`` to ``F_new``."""
-        J_old, J_new = _det(F_old), _det(F_new)
+        J_old, J_new = det(F_old), det(F_new)
         rate = (J_new - J_old) / (dt * J_new)
         compress = jnp.minimum(rate, 0.0)
         c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)

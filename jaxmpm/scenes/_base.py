@@ -74,6 +74,11 @@ class AbstractScene(eqx.Module):
     def length(self) -> Float[Array, ""]:
         return self.cells * self.h
 
+    @property
+    def wave_speed(self) -> Float[Array, ""]:
+        """The material's sound speed at rest (``F = 1``; the scenes are 1D)."""
+        return self.material().sound_speed(jnp.ones((1, 1), dtype=self.h.dtype), self.rho0)
+
     def grid(self) -> Grid:
         x_min = jnp.reshape(-self.pad * self.h, (1,))
         return Grid(x_min=x_min, h=self.h, n_nodes=self.cells + 2 * self.pad + 1)

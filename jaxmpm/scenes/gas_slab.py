@@ -58,8 +58,12 @@ class GasSlab(AbstractScene):
         return (self.P0 / self.p_atm) ** (1.0 / self.gamma)
 
 
-def free_surface(state, body) -> jnp.ndarray:
-    """The free-surface position: the last particle's right domain edge (its tracked corner under MPQ)."""
-    if state.corners is not None:
-        return state.corners[body.corner_ids[-1, 1], 0]
-    return state.x[-1, 0] + state.F[-1, 0, 0] * body.r0[-1, 0]
+def free_surface(x, F, corners, body) -> jnp.ndarray:
+    """The free-surface position: the last particle's right domain edge (its tracked corner under MPQ).
+
+    ``x``, ``F`` and ``corners`` (``None`` unless tracked) may carry leading axes (a saved history, an
+    ensemble): the result has those axes.
+    """
+    if corners is not None:
+        return corners[..., body.corner_ids[-1, 1], 0]
+    return x[..., -1, 0] + F[..., -1, 0, 0] * body.r0[-1, 0]

@@ -83,11 +83,6 @@ class Manufactured(AbstractScene):
             return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=self.p_atm)
         return NeoHookean(lam=self.lam, mu=self.mu)
 
-    @property
-    def wave_speed(self):
-        """The model's wave speed at ``F = 1`` (the ``c`` of the default field)."""
-        return self.material().sound_speed(jnp.ones((1, 1), dtype=self.h.dtype), self.rho0)
-
     def displacement(self, X, t):
         """``u(X, t)``, shape ``(1,)``."""
         if self.displacement_fn is not None:
