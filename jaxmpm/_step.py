@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from . import status as st_bits
-from ._util import det, tree_where
+from ._util import contract, det
 from .boundaries import ArtificialLayer, artificial_layer, traction_points, wall_mask
 from .grid import Grid
 from .interpolators import AbstractInterpolator
@@ -64,6 +64,7 @@ class Setup(eqx.Module):
     material: AbstractMaterial
     layer: ArtificialLayer | None
     walls: Bool[Array, " n_nodes"] | None
+    tiny: Float[Array, ""]  # node masses at or below this are round-off, not mass (see ``step``)
 
 
 def traction_sides(scene: AbstractScene) -> tuple[bool, bool]:
@@ -82,12 +83,14 @@ def setup(model: Model) -> Setup:
             f"got pad={scene.pad}, artificial_cells={model.artificial_cells}"
         )
     walls = wall_mask(grid.n_nodes, scene.pad, scene.cells, scene.left, scene.right)
+    body = scene.body()
     return Setup(
         grid=grid,
-        body=scene.body(),
+        body=body,
         material=scene.material(),
         layer=artificial_layer(scene.cells, scene.ppc, model.artificial_cells, free),
         walls=None if walls is None else jnp.asarray(walls),
+        tiny=256 * jnp.finfo(body.m.dtype).eps * jnp.max(body.m),
     )
 
 
@@ -127,12 +130,21 @@ def initial_state(model: Model, s: Setup) -> State:
 
 
 def _particle_corners(state: State, body: Body):
-    return None if state.corners is None else state.corners[body.corner_ids]
+    return None if state.corners is None else body.particle_corners(state.corners)
+
+
+def _sound_speed(model: Model, s: Setup, state: State) -> Float[Array, " n"]:
+    """Each particle's wave speed; the stored stress stands in for work on ``F`` when it is the
+    material's alone (no viscous part)."""
+    if model.viscosity is None:
+        fn = jax.vmap(s.material.sound_speed_from_stress, in_axes=(0, 0, None))
+        return fn(state.F, state.sigma, model.scene.rho0)
+    return jax.vmap(s.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
 
 
 def stable_dt(model: Model, s: Setup, state: State, cfl: Float[Array, ""]) -> Float[Array, ""]:
     """The CFL-limited step ``cfl h / max_p(c_p + |v_p|)`` of the current state (SPEC 5)."""
-    c = jax.vmap(s.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
+    c = _sound_speed(model, s, state)
     speed = jnp.max(c + jnp.linalg.norm(state.v, axis=1))
     return cfl * s.grid.h / speed
 
@@ -179,13 +191,12 @@ def step(
     # A node mass below a few hundred ulps of a particle's mass is round-off in the weights (a domain
     # edge exactly on a node gives its far neighbour 1e-31 instead of 0), not mass: such a node counts
     # as empty. Otherwise a/m there is round-off divided by round-off, and the run depends on which.
-    tiny = 256 * jnp.finfo(m.dtype).eps * jnp.max(m)
-    occupied = mass_all > tiny
+    occupied = mass_all > s.tiny
     v_n = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
 
     # 2. Forces: internal, body force, tractions at the material boundary points.
     V = body.V0 * det(F)
-    f_int = jnp.einsum("nab,nkb->nka", state.sigma, stencil.dw) * V[:, None, None]
+    f_int = contract("nab,nkb->nka", state.sigma, stencil.dw) * V[:, None, None]
     f = -grid.scatter(stencil.gidx, f_int)
     if scene.body_force is not None:
         b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
@@ -201,7 +212,7 @@ def step(
         pre_checks.append(
             (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr))
         )
-    has_mass = mass > tiny
+    has_mass = mass > s.tiny
     f = fold_massless(f, has_mass)
 
     # 3. Grid update; inactive nodes (no real mass) get no acceleration; walls hold v = 0.
@@ -221,7 +232,7 @@ def step(
         v_new = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
         if s.walls is not None:
             v_new = jnp.where(s.walls[:, None], 0.0, v_new)
-    x_p = x + dt * jnp.einsum("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
+    x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
 
     # 5. Kinematics, 6. constitutive update.
     F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
@@ -230,7 +241,7 @@ def step(
         sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
     x_tr = state.x_traction
     if x_tr is not None:
-        x_tr = x_tr + dt * jnp.einsum("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
+        x_tr = x_tr + dt * contract("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
 
     new = State(
         t=(state.step + 1).astype(dt.dtype) * dt if t_new is None else t_new,
@@ -252,15 +263,14 @@ def step(
     finite = jnp.isfinite(x_p).all(1) & jnp.isfinite(v_p).all(1)
     finite = finite & jnp.isfinite(F_new).all((1, 2)) & jnp.isfinite(sigma).all((1, 2))
     if corners is not None:
-        finite = finite & jnp.isfinite(corners[body.corner_ids]).all((1, 2))
+        finite = finite & jnp.isfinite(body.particle_corners(corners)).all((1, 2))
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
     left_grid = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
     if model.cfl_limit is not None:
-        c = jax.vmap(mat.sound_speed, in_axes=(0, None))(F, scene.rho0)
-        speed = c + jnp.linalg.norm(v, axis=1)
+        speed = _sound_speed(model, s, state) + jnp.linalg.norm(v, axis=1)
         # (a relative allowance of a few ulps, so a step set exactly at the limit passes)
         allowed = model.cfl_limit * grid.h * (1.0 + 16 * jnp.finfo(dt.dtype).eps)
         checks.append((st_bits.CFL, dt * speed > allowed))
@@ -278,7 +288,9 @@ def step(
     else:
         healthy = state.status == 0
     ok = healthy & (bits == 0)
-    kept = tree_where(ok, new, state)
+    # (lax.cond, not a select: a healthy step then costs no extra pass over the state; under vmap
+    # it becomes the select.)
+    kept = jax.lax.cond(ok, lambda: new, lambda: state)
     first = healthy & (bits != 0)
     return eqx.tree_at(
         lambda z: (z.status, z.fail_step, z.fail_particle),

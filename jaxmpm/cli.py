@@ -11,6 +11,8 @@ import re
 import sys
 import time
 
+BENCH_CODES = ("numpy", "jax", "taichi", "warp", "jaxmpm")  # jaxmpm.bench.CODES, without importing it
+
 STUDIES = {
     "talk": "talk",
     "convergence": "convergence",
@@ -120,6 +122,24 @@ def _parser() -> argparse.ArgumentParser:
     rs.add_argument("file", help="the saved run (.npz)")
     rs.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     rs.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    bn = sub.add_parser("bench", help="particle-steps per second against NumPy, plain JAX, Taichi and Warp")
+    bn.add_argument(
+        "--sizes", default="1000,8000,64000,256000,1000000", help="particle counts, comma-separated"
+    )
+    bn.add_argument("--steps", type=int, default=100, help="steps per run (a quarter from 500k particles up)")
+    bn.add_argument("--dtypes", default="f32,f64", help="f32, f64 or both (each in its own process)")
+    bn.add_argument(
+        "--codes",
+        default=",".join(BENCH_CODES),
+        help="among numpy, jax (plain JAX), taichi, warp (when installed: pip install jaxmpm[bench]), jaxmpm",
+    )
+    bn.add_argument("--interpolators", default="spq,gimp,cpgimp,cpdi,mpq", help="jaxmpm's, comma-separated")
+    bn.add_argument(
+        "--no-extras", action="store_true", help="skip the reverse-mode and ensemble measurements"
+    )
+    bn.add_argument("--out", help="directory for bench.csv, bench.json and bench.md")
+    bn.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
     st = sub.add_parser("study", help="run a study and write its figures and tables")
     st.add_argument(
@@ -578,6 +598,44 @@ def _cmd_ensemble(args) -> int:
     return 0
 
 
+def _cmd_bench(args) -> int:
+    from . import bench
+
+    def names(text, what, allowed):
+        items = [t.strip() for t in text.split(",") if t.strip()]
+        bad = [t for t in items if t not in allowed]
+        if not items or bad:
+            raise UsageError(
+                f"{what} must be a comma-separated list among {', '.join(allowed)}; got {text!r}"
+            )
+        return items
+
+    try:
+        sizes = [int(t) for t in args.sizes.split(",")]
+    except ValueError:
+        raise UsageError(f"--sizes must be comma-separated integers, got {args.sizes!r}") from None
+    if any(n < 2 for n in sizes):
+        raise UsageError(f"--sizes must be particle counts >= 2, got {args.sizes!r}")
+    if args.steps < 2:
+        raise UsageError(f"--steps must be an integer >= 2, got {args.steps}")
+    dtypes = names(args.dtypes, "--dtypes", ("f32", "f64"))
+    codes = names(args.codes, "--codes", BENCH_CODES)
+    interps = names(args.interpolators, "--interpolators", ("spq", "gimp", "cpgimp", "cpdi", "mpq"))
+    missing = [c for c in codes if not bench.available(c)]
+    if missing:
+        print(
+            f"jaxmpm bench: {', '.join(missing)} not installed, skipped (pip install jaxmpm[bench])",
+            file=sys.stderr,
+        )
+    result = bench.run(sizes, args.steps, dtypes, codes, interps, extras=not args.no_extras)
+    if args.out:
+        paths = bench.write(result, args.out)
+        if not args.json:
+            print("wrote " + ", ".join(str(p) for p in paths))
+    print(json.dumps(result) if args.json else bench.table(result))
+    return 0
+
+
 def _cmd_study(args) -> int:
     import importlib
 
@@ -602,6 +660,7 @@ def main(argv: list[str] | None = None) -> int:
             "study": _cmd_study,
             "calibrate": _cmd_calibrate,
             "ensemble": _cmd_ensemble,
+            "bench": _cmd_bench,
         }
         return commands[args.command](args)
     except UsageError as e:

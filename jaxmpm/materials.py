@@ -29,6 +29,14 @@ class AbstractMaterial(eqx.Module):
     def sound_speed(self, F: Float[Array, "dim dim"], rho0: Float[Array, ""]) -> Float[Array, ""]:
         """Eulerian wave speed, used by the stable time step ``dt <= CFL h / max(c + |v|)``."""
 
+    def sound_speed_from_stress(
+        self, F: Float[Array, "dim dim"], sigma: Float[Array, "dim dim"], rho0: Float[Array, ""]
+    ) -> Float[Array, ""]:
+        """``sound_speed(F, rho0)`` given also ``sigma = stress(F)``, which a model may reuse to skip
+        work (the gas: a power of ``J``). The step's stability check calls it every step."""
+        del sigma
+        return self.sound_speed(F, rho0)
+
 
 class AdiabaticGas(AbstractMaterial):
     """Adiabatic gas of the talk: ``P = P0 J^-gamma - p_atm``, ``sigma = -P I`` (SPEC section 5).
@@ -65,6 +73,11 @@ class AdiabaticGas(AbstractMaterial):
     def sound_speed(self, F, rho0):
         J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
         return jnp.sqrt(self.gamma * self.P0 * J ** (1.0 - self.gamma) / rho0)
+
+    def sound_speed_from_stress(self, F, sigma, rho0):
+        # P0 J^-gamma = p_atm - sigma_00, so c^2 = gamma (p_atm - sigma_00) J / rho0: no power.
+        J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
+        return jnp.sqrt(jnp.maximum(self.gamma * (self.p_atm - sigma[0, 0]) * J / rho0, 0.0))
 
 
 class LinearElastic(AbstractMaterial):

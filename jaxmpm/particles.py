@@ -35,6 +35,16 @@ class Body(eqx.Module):
     def n(self) -> int:
         return self.X.shape[0]
 
+    def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n 2 dim"]:
+        """Each particle's two corners, ``corners[corner_ids]``.
+
+        A 1D body is a chain (``seed_bar``: particle ``p`` has corners ``p`` and ``p + 1``), read as
+        two shifted slices rather than a gather, which the step does several times a step.
+        """
+        if self.X.shape[1] == 1 and corners.shape[0] == self.n + 1:
+            return jnp.stack([corners[:-1], corners[1:]], axis=1)
+        return corners[self.corner_ids]
+
 
 def seed_bar(cells: int, ppc: int, h: Array, rho0: Array) -> Body:
     """Seed ``ppc`` particles per cell on ``[0, cells h]``.
@@ -48,7 +58,7 @@ def seed_bar(cells: int, ppc: int, h: Array, rho0: Array) -> Body:
     r0 = jnp.full((n, 1), 0.5 / ppc, dtype=h.dtype) * h
     V0 = 2.0 * r0[:, 0]
     X_corners = (jnp.asarray(np.arange(n + 1) / ppc, dtype=h.dtype) * h)[:, None]
-    ids = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1).astype(np.int32)
+    ids = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1).astype(np.int32)  # a chain (see Body)
     cell = np.arange(n) // ppc
     boundary = (cell == 0) | (cell == cells - 1)
     return Body(

@@ -1,5 +1,6 @@
 """Failure bits recorded in the loop state (a bitmask, as jax-md's neighbour lists do)."""
 
+import jax
 import jax.numpy as jnp
 
 NONFINITE = 1
@@ -27,11 +28,22 @@ def describe(status: int) -> list[str]:
 
 
 def combine(checks):
-    """Fold ``[(bit, mask (n,)), ...]`` into ``(status, first particle of the lowest set bit)``."""
-    status = jnp.zeros((), dtype=jnp.int32)
-    particle = jnp.full((), -1, dtype=jnp.int32)
-    for bit, mask in reversed(checks):  # lowest bit last, so its particle wins
-        hit = jnp.any(mask)
-        status = status | jnp.where(hit, jnp.int32(bit), jnp.int32(0))
-        particle = jnp.where(hit, jnp.argmax(mask).astype(jnp.int32), particle)
+    """Fold ``[(bit, mask (n,)), ...]`` into ``(status, first particle of the lowest set bit)``.
+
+    One pass builds each particle's bits and one reduction ORs them; the particle is searched for
+    only when a bit is set (``lax.cond``), so a healthy step pays for no ``argmax``.
+    """
+    per = None
+    for bit, mask in checks:
+        term = jnp.where(mask, jnp.int32(bit), jnp.int32(0))
+        per = term if per is None else per | term
+    if per is None:
+        return jnp.zeros((), dtype=jnp.int32), jnp.full((), -1, dtype=jnp.int32)
+    status = jax.lax.reduce(per, jnp.int32(0), jax.lax.bitwise_or, (0,))
+    lowest = status & -status
+
+    def first(per):
+        return jnp.argmax((per & lowest) != 0).astype(jnp.int32)
+
+    particle = jax.lax.cond(status != 0, first, lambda per: jnp.full((), -1, dtype=jnp.int32), per)
     return status, particle

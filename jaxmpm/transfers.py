@@ -7,9 +7,9 @@ import abc
 from typing import ClassVar
 
 import equinox as eqx
-import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ._util import contract
 from .grid import Grid
 from .interpolators import Stencil
 
@@ -31,7 +31,7 @@ class AbstractTransfer(eqx.Module):
 
 
 def _interp(grid: Grid, stencil: Stencil, field):
-    return jnp.einsum("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, field))
+    return contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, field))
 
 
 class FLIP(AbstractTransfer):
@@ -69,13 +69,13 @@ class APIC(AbstractTransfer):
     def momentum(self, grid, stencil, x, v, C, m):
         x_i = grid.nodes()[stencil.idx]  # (n, k, dim)
         dx = x_i - x[:, None, :]
-        vel = v[:, None, :] + jnp.einsum("nab,nkb->nka", C, dx)
+        vel = v[:, None, :] + contract("nab,nkb->nka", C, dx)
         return (stencil.w * m[:, None])[..., None] * vel
 
     def update(self, grid, stencil, v, a_nodes, v_new, dt):
         del v, a_nodes, dt
         v_g = grid.gather(stencil.gidx, v_new)
-        C = jnp.einsum("nka,nkb->nab", v_g, stencil.dw)
+        C = contract("nka,nkb->nab", v_g, stencil.dw)
         return _interp(grid, stencil, v_new), C
 
 

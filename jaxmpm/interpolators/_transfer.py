@@ -3,6 +3,7 @@
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
+from .._util import contract
 from ..grid import Grid
 from ._base import Stencil
 
@@ -28,7 +29,7 @@ def velocity_gradient(
 ) -> Float[Array, "n dim dim"]:
     """``L_p = sum_i v_i (dphi_ip)^T``, the velocity gradient each particle sees."""
     v = grid.gather(stencil.gidx, v_nodes)  # (n, kg, dim)
-    return jnp.einsum("nka,nkb->nab", v, stencil.dw)
+    return contract("nka,nkb->nab", v, stencil.dw)
 
 
 def multiplicative_F_update(
@@ -36,4 +37,4 @@ def multiplicative_F_update(
 ) -> Float[Array, "n dim dim"]:
     """``F <- (I + dt L) F``, the update of SPQ, GIMP and CPDI (SPEC section 3)."""
     L = velocity_gradient(grid, stencil, v_new)
-    return F + dt * jnp.einsum("nab,nbc->nac", L, F)
+    return F + dt * contract("nab,nbc->nac", L, F)

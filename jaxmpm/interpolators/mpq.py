@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._util import contract
 from ._base import AbstractInterpolator, Stencil
 from ._transfer import point_stencil
 
@@ -36,9 +37,9 @@ class MPQ(AbstractInterpolator):
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F
         cidx, s, _ = point_stencil(grid, corners[:, 0])
-        v_c = jnp.einsum("ck,ckd->cd", s, grid.gather(cidx, v_new))
+        v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new))
         corners = corners + dt * v_c
-        c = corners[body.corner_ids]  # (n, 2, dim)
+        c = body.particle_corners(corners)  # (n, 2, dim)
         F = ((c[:, 1, 0] - c[:, 0, 0]) / (2.0 * body.r0[:, 0]))[:, None, None]
         return F, corners
 

@@ -1,0 +1,444 @@
+"""Throughput benchmark of the 1D step (issue 6): ``jaxmpm bench`` and ``experiments/bench.py``.
+
+Million particle-steps per second of a whole ``simulate`` for each interpolator and of one jitted
+``step`` called from Python, at 1k to 1M particles, in float32 and float64, compile time measured
+apart, next to the same algorithm written directly in NumPy and plain JAX, and, when the packages
+are installed (``pip install jaxmpm[bench]``), as Taichi and Warp kernels (``jaxmpm._baselines``).
+Also the reverse-mode cost (``jax.grad`` through the checkpointed loop: time against the forward
+run, XLA's buffer bytes against the step count) and ensemble throughput per member.
+
+Each float type runs in its own process (x64 is switched on at start-up, never mid-run); everything
+in one invocation runs on the same machine, so compare ratios. The problem is ``GasExpansion``
+(``beta = 200 /s``, ``P0 = 2e5 Pa``, two particles per cell on [0, 1], ``dt = 0.2 h / (c0 + beta)``)
+with FLIP and USL; jaxmpm runs with all its checks on (CFL, F > 0, finite state, grid bounds).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import time
+
+from ._baselines import BASELINES, PROBLEM, layout
+
+SIZES = (1_000, 8_000, 64_000, 256_000, 1_000_000)
+INTERPOLATOR_NAMES = ("spq", "gimp", "cpgimp", "cpdi", "mpq")
+CODES = ("numpy", "jax", "taichi", "warp", "jaxmpm")
+_BASELINE_CODE = {"numpy": "NumPy", "jax": "plain JAX", "taichi": "Taichi", "warp": "Warp"}
+PASSES = 4  # passes over the particle state (x, v, F) a step must make; see ``bandwidth_bound``
+
+
+def steps_for(n: int, steps: int) -> int:
+    """Fewer steps at 1M particles, so a NumPy run stays within seconds."""
+    return steps if n < 500_000 else max(10, steps // 4)
+
+
+def available(code: str) -> bool:
+    """Whether an optional reference code (``taichi``, ``warp``) is installed."""
+    if code not in ("taichi", "warp"):
+        return True
+    import importlib.util
+
+    return importlib.util.find_spec(code) is not None
+
+
+def _scene(n: int):
+    import jaxmpm as jm
+
+    L = layout(n)
+    return jm.GasExpansion(cells=L["cells"], h=L["h"], pad=L["pad"], **PROBLEM), L["dt"]
+
+
+def jaxmpm_simulate(name: str, n: int, steps: int):
+    """``(compile_s, run_s, F_mean, status)`` of one ``jm.simulate`` with interpolator ``name``."""
+    import jax.numpy as jnp
+
+    import jaxmpm as jm
+
+    scene, dt = _scene(n)
+    sol, compile_s, run_s = jm.simulate_timed(
+        scene, jm.INTERPOLATORS[name](), dt=dt, steps=steps, throw=False
+    )
+    return compile_s, run_s, float(jnp.mean(sol.state.F)), int(sol.state.status)
+
+
+def jaxmpm_step(name: str, n: int, steps: int):
+    """``(compile_s, run_s, F_mean, status)`` of ``steps`` calls of one jitted ``jm.step`` from Python
+    (what a user's own loop costs: one dispatch a step)."""
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    import jaxmpm as jm
+
+    scene, dt = _scene(n)
+    model = jm.Model(scene, jm.INTERPOLATORS[name](), jm.FLIP())
+    s = jm.setup(model)
+    state = jm.initial_state(model, s)
+    dt = jnp.asarray(dt, dtype=state.x.dtype)
+    one = eqx.filter_jit(jm.step)
+    t0 = time.perf_counter()
+    compiled = one.lower(model, s, state, dt).compile()
+    t1 = time.perf_counter()
+    for _ in range(steps):
+        state = compiled(model, s, state, dt)
+    jax.block_until_ready(state)
+    t2 = time.perf_counter()
+    return t1 - t0, t2 - t1, float(jnp.mean(state.F)), int(state.status)
+
+
+def reverse_mode(step_counts=(250, 1_000, 4_000)) -> list[dict]:
+    """Forward run against ``jax.grad`` through the checkpointed loop (``checkpoint=True``).
+
+    The problem of ``experiments/grad_memory.py``: the gas expansion with 1,000 particles (500 cells,
+    ``h = 2 mm``, ``beta = 2 /s``), MPQ with artificial cells, ``dt = 0.1 h / c0``; the objective is
+    the final RMS relative F error, differentiated in ``beta``. XLA's buffer account (arguments,
+    outputs, temporaries) of each compiled computation measures memory; plain (uncheckpointed)
+    reverse mode is compiled for its account only.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    import jaxmpm as jm
+
+    h = 0.002
+    dt = 0.1 * h / (1.4 * 2.0e5) ** 0.5
+    rows = []
+    for steps in step_counts:
+
+        def objective(beta, checkpoint, steps=steps):
+            scene = jm.GasExpansion(cells=500, ppc=2, h=h, beta=beta, pad=60)
+            sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps, artificial_cells=1, checkpoint=checkpoint)
+            return jm.errors(scene, sol.state, sol.body)["F_rms_rel"]
+
+        beta = jnp.asarray(2.0)
+        row = dict(particles=1_000, steps=steps, interpolator="mpq")
+        for mode, fn in (
+            ("forward", jax.jit(lambda b: objective(b, False))),
+            ("reverse", jax.jit(jax.grad(lambda b: objective(b, True)))),
+            ("plain_reverse", jax.jit(jax.grad(lambda b: objective(b, False)))),
+        ):
+            t0 = time.perf_counter()
+            compiled = fn.lower(beta).compile()
+            row[f"{mode}_compile_s"] = time.perf_counter() - t0
+            m = compiled.memory_analysis()
+            row[f"{mode}_xla_bytes"] = int(
+                m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes
+            )
+            if mode != "plain_reverse":
+                jax.block_until_ready(compiled(beta))  # a warm run, then the timed one
+                t0 = time.perf_counter()
+                jax.block_until_ready(compiled(beta))
+                row[f"{mode}_s"] = time.perf_counter() - t0
+        row["reverse_over_forward"] = row["reverse_s"] / row["forward_s"]
+        rows.append(row)
+    return rows
+
+
+def ensemble_throughput(n: int = 1_000, members: int = 256, steps: int = 100, name: str = "mpq") -> dict:
+    """One ``jm.ensemble`` of ``members`` values of ``beta`` against one ``jm.simulate``: particle-steps
+    per second per member, and the ensemble's time per member against one run's."""
+    import jax
+    import numpy as np
+
+    import jaxmpm as jm
+
+    scene, dt = _scene(n)
+    vary = {"beta": np.linspace(0.5, 1.0, members) * PROBLEM["beta"]}
+    jax.block_until_ready(jm.ensemble(scene, jm.INTERPOLATORS[name](), vary, dt=dt, steps=steps).solution)
+    t0 = time.perf_counter()
+    ens = jm.ensemble(scene, jm.INTERPOLATORS[name](), vary, dt=dt, steps=steps)
+    jax.block_until_ready(ens.solution)
+    ens_s = time.perf_counter() - t0
+    _, _, single_s = jm.simulate_timed(scene, jm.INTERPOLATORS[name](), dt=dt, steps=steps, throw=False)
+    return dict(
+        particles=n,
+        members=members,
+        steps=steps,
+        interpolator=name,
+        ensemble_s=ens_s,
+        single_run_s=single_s,
+        s_per_member=ens_s / members,
+        Mpsps_per_member=n * steps / (ens_s / members) / 1e6,
+        Mpsps_single=n * steps / single_s / 1e6,
+        failed_members=int((~ens.ok).sum()),
+    )
+
+
+def copy_bandwidth(nbytes: int = 256 * 2**20) -> float:
+    """Memory bandwidth in bytes per second of a large NumPy copy (read + write), best of 5."""
+    import numpy as np
+
+    a = np.ones(nbytes // 8)
+    b = np.empty_like(a)
+    best = float("inf")
+    for _ in range(5):
+        t0 = time.perf_counter()
+        np.copyto(b, a)
+        best = min(best, time.perf_counter() - t0)
+    return 2 * nbytes / best
+
+
+def bandwidth_bound(bytes_per_s: float, dtype: str) -> float:
+    """Million particle-steps per second a step cannot beat on this memory: ``PASSES`` passes over
+    the particle state ``x, v, F`` (P2G reads it; G2P reads it again and writes it; the grid, about
+    0.6 nodes per particle with five fields, moves about one more pass)."""
+    item = 4 if dtype == "f32" else 8
+    return bytes_per_s / (PASSES * 3 * item) / 1e6
+
+
+def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool) -> dict:
+    import jax
+
+    jax.config.update("jax_enable_x64", dtype == "f64")
+    rows = []
+
+    def add(code, n, n_steps, result):
+        compile_s, run_s, F_mean = result[:3]
+        status = result[3] if len(result) > 3 else 0
+        rows.append(
+            dict(
+                code=code,
+                dtype=dtype,
+                particles=n,
+                steps=n_steps,
+                compile_s=compile_s,
+                run_s=run_s,
+                Mpsps=n * n_steps / run_s / 1e6,
+                F_mean=F_mean,
+                status=status,
+            )
+        )
+
+    for n in sizes:
+        n_steps = steps_for(n, steps)
+        for code in ("numpy", "jax", "taichi", "warp"):
+            if code in codes and available(code):
+                add(_BASELINE_CODE[code], n, n_steps, BASELINES[_BASELINE_CODE[code]](n, n_steps, dtype))
+        if "jaxmpm" in codes:
+            for name in interpolators:
+                add(f"jaxmpm {name}", n, n_steps, jaxmpm_simulate(name, n, n_steps))
+            add("jaxmpm spq, one step a call", n, n_steps, jaxmpm_step("spq", n, n_steps))
+            jax.clear_caches()
+    out = dict(rows=rows)
+    if extras and "jaxmpm" in codes:
+        if dtype == "f64":
+            out["reverse"] = reverse_mode()
+        out["ensemble"] = [ensemble_throughput()]
+        for r in out["ensemble"]:
+            r["dtype"] = dtype
+    return out
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()}"
+
+
+def run(
+    sizes=SIZES,
+    steps: int = 100,
+    dtypes=("f32", "f64"),
+    codes=CODES,
+    interpolators=INTERPOLATOR_NAMES,
+    extras: bool = True,
+) -> dict:
+    """Run the benchmark, one subprocess per float type; returns rows, extras and the machine."""
+    result = dict(
+        date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        machine=machine(),
+        versions=_versions(),
+        rows=[],
+        reverse=[],
+        ensemble=[],
+    )
+    bw = copy_bandwidth()
+    result["copy_bandwidth_GBps"] = bw / 1e9
+    for dtype in dtypes:
+        spec = dict(
+            dtype=dtype,
+            sizes=list(sizes),
+            steps=steps,
+            codes=list(codes),
+            interpolators=list(interpolators),
+            extras=extras,
+        )
+        cmd = [sys.executable, "-m", "jaxmpm.bench", "--worker", json.dumps(spec)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
+        if proc.returncode != 0:
+            raise RuntimeError(f"the {dtype} benchmark process failed:\n{proc.stderr[-4000:]}")
+        part = json.loads(proc.stdout.strip().splitlines()[-1])
+        for key in ("rows", "reverse", "ensemble"):
+            result[key].extend(part.get(key, []))
+        result[f"bandwidth_bound_Mpsps_{dtype}"] = bandwidth_bound(bw, dtype)
+    result["agreement"] = agreement(result["rows"])
+    return result
+
+
+def agreement(rows) -> dict:
+    """Largest relative difference of the mean final F from NumPy's, per dtype: among the reference
+    codes (the same algorithm, so they agree to round-off; a wrong kernel shows), and of ``jaxmpm
+    spq`` (the same method, which also folds force from nodes without mass onto their neighbours:
+    a real, small difference while the free end crosses into a new cell)."""
+    out = {}
+    for dtype in sorted({r["dtype"] for r in rows}):
+        worst = {"reference codes": 0.0, "jaxmpm spq": 0.0}
+        for r in rows:
+            group = "reference codes" if r["code"] in _BASELINE_CODE.values() else None
+            group = "jaxmpm spq" if r["code"].startswith("jaxmpm spq") else group
+            if r["dtype"] != dtype or group is None or r["status"] != 0:
+                continue
+            ref = next(
+                (
+                    q
+                    for q in rows
+                    if q["code"] == "NumPy" and q["dtype"] == dtype and q["particles"] == r["particles"]
+                ),
+                None,
+            )
+            if ref is not None:
+                worst[group] = max(worst[group], abs(r["F_mean"] - ref["F_mean"]) / abs(ref["F_mean"]))
+        out[dtype] = worst
+    return out
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for pkg in ("jax", "numpy", "taichi", "warp-lang"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+def table(result: dict) -> str:
+    """Markdown: million particle-steps per second (compile s) per code and size, per dtype."""
+    rows = result["rows"]
+    lines = [
+        f"Measured {result['date']} on {result['machine']}; "
+        + ", ".join(f"{k} {v}" for k, v in result["versions"].items())
+        + "."
+    ]
+    for dtype in dict.fromkeys(r["dtype"] for r in rows):
+        sizes = sorted({r["particles"] for r in rows if r["dtype"] == dtype})
+        lines += ["", f"{dtype}: million particle-steps per second (compile s in brackets)", ""]
+        lines.append("| code | " + " | ".join(f"{n:,}" for n in sizes) + " |")
+        lines.append("|---|" + "---|" * len(sizes))
+        for code in dict.fromkeys(r["code"] for r in rows if r["dtype"] == dtype):
+            cells = []
+            for n in sizes:
+                r = next(
+                    (r for r in rows if r["code"] == code and r["dtype"] == dtype and r["particles"] == n),
+                    None,
+                )
+                if r is None:
+                    cells.append("")
+                    continue
+                flag = "" if r["status"] == 0 else f" status {r['status']}"
+                cells.append(f"{r['Mpsps']:.1f} ({r['compile_s']:.2f}){flag}")
+            lines.append(f"| {code} | " + " | ".join(cells) + " |")
+        ratio = []
+        for n in sizes:
+            fast = [
+                r["Mpsps"]
+                for r in rows
+                if r["dtype"] == dtype and r["particles"] == n and r["code"] in ("Taichi", "Warp")
+            ]
+            mine = [
+                r["Mpsps"]
+                for r in rows
+                if r["dtype"] == dtype and r["particles"] == n and r["code"] == "jaxmpm spq"
+            ]
+            ratio.append(f"{mine[0] / max(fast):.2f}" if fast and mine else "")
+        if any(ratio):
+            lines.append("| jaxmpm spq / faster of Taichi, Warp | " + " | ".join(ratio) + " |")
+        bound = result.get(f"bandwidth_bound_Mpsps_{dtype}")
+        if bound:
+            lines.append(
+                f"| bandwidth bound ({result['copy_bandwidth_GBps']:.1f} GB/s copy, "
+                f"{PASSES} passes over x, v, F) | " + " | ".join(f"{bound:.0f}" for _ in sizes) + " |"
+            )
+    if result.get("reverse"):
+        lines += [
+            "",
+            "Reverse mode (jax.grad of the final F error in beta; float64; MPQ, artificial cells; "
+            "checkpoint=True):",
+            "",
+        ]
+        lines.append(
+            "| particles | steps | forward s | reverse s | ratio | XLA MB forward | checkpointed | plain |"
+        )
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for r in result["reverse"]:
+            lines.append(
+                f"| {r['particles']:,} | {r['steps']:,} | {r['forward_s']:.3f} | {r['reverse_s']:.3f} | "
+                f"{r['reverse_over_forward']:.2f} | {r['forward_xla_bytes'] / 1e6:.2f} | "
+                f"{r['reverse_xla_bytes'] / 1e6:.2f} | {r['plain_reverse_xla_bytes'] / 1e6:.2f} |"
+            )
+    if result.get("ensemble"):
+        lines += ["", "Ensembles (jm.ensemble over beta, one compiled call):", ""]
+        lines.append(
+            "| dtype | particles | members | steps | ensemble s | M p-steps/s per member | one run alone |"
+        )
+        lines.append("|---|---|---|---|---|---|---|")
+        for r in result["ensemble"]:
+            lines.append(
+                f"| {r['dtype']} | {r['particles']:,} | {r['members']} | {r['steps']} | "
+                f"{r['ensemble_s']:.2f} | "
+                f"{r['Mpsps_per_member']:.1f} | {r['Mpsps_single']:.1f} |"
+            )
+    agree = result.get("agreement", {})
+    if agree:
+        lines += [
+            "",
+            "Mean final F, largest relative difference from NumPy's: "
+            + "; ".join(f"{k}: " + ", ".join(f"{g} {v:.1e}" for g, v in d.items()) for k, d in agree.items()),
+        ]
+    return "\n".join(lines)
+
+
+def write(result: dict, out_dir: str | os.PathLike) -> list[pathlib.Path]:
+    """``bench.csv`` (the throughput rows), ``bench.json`` (everything) and ``bench.md`` (the tables)."""
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "bench.csv", out / "bench.json", out / "bench.md"]
+    with open(paths[0], "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(result["rows"][0]))
+        w.writeheader()
+        w.writerows(result["rows"])
+    paths[1].write_text(json.dumps(result, indent=1))
+    paths[2].write_text(table(result) + "\n")
+    return paths
+
+
+if __name__ == "__main__":  # the per-dtype worker process of ``run``
+    if len(sys.argv) == 3 and sys.argv[1] == "--worker":
+        spec = json.loads(sys.argv[2])
+        print(
+            json.dumps(
+                worker(
+                    spec["dtype"],
+                    spec["sizes"],
+                    spec["steps"],
+                    spec["codes"],
+                    spec["interpolators"],
+                    spec["extras"],
+                )
+            )
+        )
+    else:
+        sys.exit("usage: jaxmpm bench (see jaxmpm bench --help)")
