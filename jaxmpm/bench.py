@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import datetime
 import json
+import math
 import os
 import pathlib
 import platform
@@ -216,17 +217,24 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool) ->
             )
         )
 
+    folded = {}
     for n in sizes:
         n_steps = steps_for(n, steps)
         for code in ("numpy", "jax", "taichi", "warp"):
             if code in codes and available(code):
                 add(_BASELINE_CODE[code], n, n_steps, BASELINES[_BASELINE_CODE[code]](n, n_steps, dtype))
+        # What jaxmpm spq must reproduce (see agreement): in float64, where round-off stays small;
+        # float32 runs of this problem part ways at the 1e-3 level whatever the code (see README).
+        if "jaxmpm" in codes and "numpy" in codes and dtype == "f64":
+            folded[n] = BASELINES["NumPy"](n, n_steps, dtype, fold=True)[2]
         if "jaxmpm" in codes:
             for name in interpolators:
                 add(f"jaxmpm {name}", n, n_steps, jaxmpm_simulate(name, n, n_steps))
             add("jaxmpm spq, one step a call", n, n_steps, jaxmpm_step("spq", n, n_steps))
             jax.clear_caches()
-    out = dict(rows=rows)
+    out = dict(
+        rows=rows, numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F) for n, F in folded.items()]
+    )
     if extras and "jaxmpm" in codes:
         if dtype == "f64":
             out["reverse"] = reverse_mode()
@@ -260,6 +268,7 @@ def run(
         machine=machine(),
         versions=_versions(),
         rows=[],
+        numpy_with_fold=[],
         reverse=[],
         ensemble=[],
     )
@@ -279,37 +288,43 @@ def run(
         if proc.returncode != 0:
             raise RuntimeError(f"the {dtype} benchmark process failed:\n{proc.stderr[-4000:]}")
         part = json.loads(proc.stdout.strip().splitlines()[-1])
-        for key in ("rows", "reverse", "ensemble"):
+        for key in ("rows", "reverse", "ensemble", "numpy_with_fold"):
             result[key].extend(part.get(key, []))
         result[f"bandwidth_bound_Mpsps_{dtype}"] = bandwidth_bound(bw, dtype)
-    result["agreement"] = agreement(result["rows"])
+    result["agreement"] = agreement(result["rows"], result["numpy_with_fold"])
     return result
 
 
-def agreement(rows) -> dict:
-    """Largest relative difference of the mean final F from NumPy's, per dtype: among the reference
-    codes (the same algorithm, so they agree to round-off; a wrong kernel shows), and of ``jaxmpm
-    spq`` (the same method, which also folds force from nodes without mass onto their neighbours:
-    a real, small difference while the free end crosses into a new cell)."""
+def agreement(rows, numpy_with_fold=()) -> dict:
+    """Largest relative difference of the mean final F, per dtype: among the reference codes (one
+    algorithm, so they agree to round-off and a wrong kernel shows), and of ``jaxmpm spq`` from the
+    NumPy code with jaxmpm's fold of force off empty nodes (``numpy_spq(fold=True)``: the same
+    method exactly). ``jaxmpm spq`` against the reference codes' standard algorithm differs by
+    that fold, a real difference while the free end enters a new cell."""
     out = {}
     for dtype in sorted({r["dtype"] for r in rows}):
-        worst = {"reference codes": 0.0, "jaxmpm spq": 0.0}
+        worst = {"reference codes": 0.0, "jaxmpm spq vs NumPy with the fold": 0.0}
+        seen = set()
         for r in rows:
-            group = "reference codes" if r["code"] in _BASELINE_CODE.values() else None
-            group = "jaxmpm spq" if r["code"].startswith("jaxmpm spq") else group
-            if r["dtype"] != dtype or group is None or r["status"] != 0:
+            if r["dtype"] != dtype or r["status"] != 0:
                 continue
-            ref = next(
-                (
-                    q
-                    for q in rows
-                    if q["code"] == "NumPy" and q["dtype"] == dtype and q["particles"] == r["particles"]
-                ),
-                None,
-            )
-            if ref is not None:
+            if r["code"] in _BASELINE_CODE.values():
+                group, refs = (
+                    "reference codes",
+                    [q for q in rows if q["code"] == "NumPy" and q["dtype"] == dtype],
+                )
+            elif r["code"].startswith("jaxmpm spq"):
+                group, refs = (
+                    "jaxmpm spq vs NumPy with the fold",
+                    [q for q in numpy_with_fold if q["dtype"] == dtype],
+                )
+            else:
+                continue
+            ref = next((q for q in refs if q["particles"] == r["particles"]), None)
+            if ref is not None and math.isfinite(ref["F_mean"]):
+                seen.add(group)
                 worst[group] = max(worst[group], abs(r["F_mean"] - ref["F_mean"]) / abs(ref["F_mean"]))
-        out[dtype] = worst
+        out[dtype] = {group: value for group, value in worst.items() if group in seen}
     return out
 
 
