@@ -190,7 +190,7 @@ def advance(
         if checkpoint is None or n <= checkpoint:
             return scan(state, n)
         blocks, rem = divmod(n, checkpoint)
-        block = jax.checkpoint(lambda st, _: (scan(st, checkpoint), None))
+        block = jax.checkpoint(lambda st, _: (scan(st, checkpoint), None), prevent_cse=False)
         state = jax.lax.scan(block, state, None, length=blocks)[0]
         return scan(state, rem)
 

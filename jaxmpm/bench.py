@@ -274,7 +274,10 @@ def run(
     )
     bw = copy_bandwidth()
     result["copy_bandwidth_GBps"] = bw / 1e9
-    for dtype in dtypes:
+    for k, dtype in enumerate(dtypes):
+        print(
+            f"jaxmpm bench: {dtype} ({k + 1} of {len(dtypes)}), one process ...", file=sys.stderr, flush=True
+        )
         spec = dict(
             dtype=dtype,
             sizes=list(sizes),
