@@ -230,7 +230,8 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool) ->
         if "jaxmpm" in codes:
             for name in interpolators:
                 add(f"jaxmpm {name}", n, n_steps, jaxmpm_simulate(name, n, n_steps))
-            add("jaxmpm spq, one step a call", n, n_steps, jaxmpm_step("spq", n, n_steps))
+            for name in interpolators:
+                add(f"jaxmpm {name}, one step a call", n, n_steps, jaxmpm_step(name, n, n_steps))
             jax.clear_caches()
     out = dict(
         rows=rows, numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F) for n, F in folded.items()]

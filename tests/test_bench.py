@@ -126,7 +126,14 @@ def test_bench_command_json_and_files(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert {"date", "machine", "rows", "copy_bandwidth_GBps", "agreement"} <= set(out)
     codes = {r["code"] for r in out["rows"]}
-    assert codes == {"NumPy", "plain JAX", "jaxmpm spq", "jaxmpm mpq", "jaxmpm spq, one step a call"}
+    assert codes == {
+        "NumPy",
+        "plain JAX",
+        "jaxmpm spq",
+        "jaxmpm mpq",
+        "jaxmpm spq, one step a call",
+        "jaxmpm mpq, one step a call",
+    }
     for r in out["rows"]:
         assert r["particles"] in (200, 400) and r["steps"] == 5 and r["dtype"] == "f64"
         assert r["Mpsps"] > 0 and r["run_s"] > 0 and r["status"] == 0
