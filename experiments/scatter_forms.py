@@ -1,0 +1,139 @@
+"""How XLA's CPU backend prices the ways of writing the step's particle-to-grid sums (issue 6).
+
+Each form sums the same ``2 n`` weighted values (two nodes per particle, particles sorted as in a
+1D body) onto ``n_nodes`` nodes, for three quantities (mass, momentum, force), inside a
+``lax.scan`` so that dispatch does not count:
+
+- ``scalar x6``: six scalar scatters of ``n`` values (what the plain-JAX baseline does);
+- ``flat x3``: three scalar scatters of ``2 n`` values (what ``Grid.scatter`` does);
+- ``per column x3``: each of the three as two scatters, one per stencil column;
+- ``window (2n, 3)``: one scatter of three-value rows;
+- ``complex x2``: mass and momentum as the real and imaginary parts of one complex scatter;
+- ``sorted hint``, ``segment_sum``: the flat form told that its indices are sorted.
+
+Also the two gathers of a 1D G2P: per node (``field[i]``, ``field[i + 1]``) and as rows of a
+stacked ``(field[j], field[j + 1])`` array.
+
+    python experiments/scatter_forms.py [--n 262144,1048576] [--x64]
+
+Prints milliseconds per step and nanoseconds per scattered value; compare rows within one run.
+In isolation one scatter per stencil column is the cheapest form, yet inside the whole step it was
+slower than the flat form (see the README's performance section): measure forms in the step too.
+"""
+
+import argparse
+import time
+
+import jax
+
+
+def forms(n_nodes):
+    import jax.numpy as jnp
+
+    z = lambda *tail: jnp.zeros((n_nodes, *tail))  # noqa: E731
+
+    def scalar6(i, w1, vals):
+        w0 = 1 - w1
+        return [z().at[i].add(w0 * v).at[i + 1].add(w1 * v) for v in vals]
+
+    def flat3(i, w1, vals, **kw):
+        idx = jnp.stack([i, i + 1], 1).reshape(-1)
+        w = jnp.stack([1 - w1, w1], 1)
+        return [z().at[idx].add((w * v[:, None]).reshape(-1), mode="drop", **kw) for v in vals]
+
+    def per_column3(i, w1, vals):
+        return [z().at[i].add((1 - w1) * v, mode="drop").at[i + 1].add(w1 * v, mode="drop") for v in vals]
+
+    def window(i, w1, vals):
+        idx = jnp.stack([i, i + 1], 1).reshape(-1)
+        w = jnp.stack([1 - w1, w1], 1)
+        rows = (w[:, :, None] * jnp.stack(vals, 1)[:, None, :]).reshape(-1, len(vals))
+        out = z(len(vals)).at[idx].add(rows, mode="drop")
+        return [out[:, k] for k in range(len(vals))]
+
+    def complex2(i, w1, vals):
+        idx = jnp.stack([i, i + 1], 1).reshape(-1)
+        w = jnp.stack([1 - w1, w1], 1)
+        mm = jax.lax.complex((w * vals[0][:, None]).reshape(-1), (w * vals[1][:, None]).reshape(-1))
+        out = jnp.zeros(n_nodes, mm.dtype).at[idx].add(mm, mode="drop")
+        force = z().at[idx].add((w * vals[2][:, None]).reshape(-1), mode="drop")
+        return [out.real, out.imag, force]
+
+    def sorted_hint(i, w1, vals):
+        return flat3(i, w1, vals, indices_are_sorted=True)
+
+    def segsum(i, w1, vals):
+        idx = jnp.stack([i, i + 1], 1).reshape(-1)
+        w = jnp.stack([1 - w1, w1], 1)
+        return [
+            jax.ops.segment_sum((w * v[:, None]).reshape(-1), idx, n_nodes, indices_are_sorted=True)
+            for v in vals
+        ]
+
+    return {
+        "scalar x6": scalar6,
+        "flat x3": flat3,
+        "per column x3": per_column3,
+        "window (2n, 3)": window,
+        "complex x2": complex2,
+        "sorted hint": sorted_hint,
+        "segment_sum": segsum,
+    }
+
+
+def gathers():
+    import jax.numpy as jnp
+
+    def per_node(i, w1, field):
+        return (1 - w1) * field[i] + w1 * field[i + 1]
+
+    def rows(i, w1, field):
+        stacked = jnp.stack([field[:-1], field[1:]], 1)[i]
+        return (1 - w1) * stacked[:, 0] + w1 * stacked[:, 1]
+
+    return {"gather per node": per_node, "gather stacked rows": rows}
+
+
+def time_form(fn, args, reps=30):
+    def loop(*a):
+        def body(c, _):
+            out = fn(a[0], a[1] + c * 0, *a[2:])
+            out = out if isinstance(out, list) else [out]
+            return c + sum(o.sum() for o in out) * 0, None
+
+        return jax.lax.scan(body, jax.numpy.zeros((), a[1].dtype), None, length=reps)[0]
+
+    f = jax.jit(loop)
+    jax.block_until_ready(f(*args))
+    t0 = time.perf_counter()
+    jax.block_until_ready(f(*args))
+    return (time.perf_counter() - t0) / reps
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--n", default="262144,1048576")
+    p.add_argument("--x64", action="store_true")
+    args = p.parse_args()
+    jax.config.update("jax_enable_x64", args.x64)
+    import jax.numpy as jnp
+
+    for n in (int(s) for s in args.n.split(",")):
+        n_nodes = n // 2 + n // 8 + 10
+        key = jax.random.PRNGKey(0)
+        x = jnp.sort(jax.random.uniform(key, (n,), minval=5.0, maxval=n // 2))
+        i = jnp.floor(x).astype(jnp.int32)
+        w1 = x - jnp.floor(x)
+        vals = [jax.random.normal(jax.random.fold_in(key, k), (n,)) for k in range(3)]
+        print(f"\nn = {n:,} particles, {n_nodes:,} nodes, {'float64' if args.x64 else 'float32'}")
+        for name, fn in forms(n_nodes).items():
+            s = time_form(lambda i_, w_, *v, fn=fn: fn(i_, w_, list(v)), (i, w1, *vals))
+            print(f"  {name:20s} {s * 1e3:7.2f} ms   {s / (6 * n) * 1e9:5.2f} ns per value")
+        field = jax.random.normal(key, (n_nodes,))
+        for name, fn in gathers().items():
+            s = time_form(fn, (i, w1, field))
+            print(f"  {name:20s} {s * 1e3:7.2f} ms   {s / (2 * n) * 1e9:5.2f} ns per value")
+
+
+if __name__ == "__main__":
+    main()
