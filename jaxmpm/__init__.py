@@ -13,6 +13,7 @@ from . import metrics as metrics
 from . import reference as reference
 from . import sensitivity as sensitivity
 from . import status as status
+from . import vtk as vtk
 from ._simulate import (
     SaveAt as SaveAt,
 )

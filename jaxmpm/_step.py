@@ -142,6 +142,20 @@ def _sound_speed(model: Model, s: Setup, state: State) -> Float[Array, " n"]:
     return jax.vmap(s.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
 
 
+def _transfer_to_grid(grid: Grid, transfer: AbstractTransfer, stencil, x, v, C, m):
+    """Nodal mass and momentum that particles with ``stencil`` put on the grid (SPEC 2, step 1)."""
+    mass = grid.scatter(stencil.idx, stencil.w * m[:, None])
+    return mass, grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, C, m))
+
+
+def particle_to_grid(model: Model, s: Setup, state: State):
+    """Nodal ``(mass, momentum)`` of the real particles of ``state``: the step's first stage without
+    the artificial particles (for output; the step itself adds those)."""
+    corners = _particle_corners(state, s.body)
+    stencil = model.interpolator.stencil(s.grid, s.body.r0, state.x, state.F, corners, gradients=False)
+    return _transfer_to_grid(s.grid, model.transfer, stencil, state.x, state.v, state.C, s.body.m)
+
+
 def stable_dt(model: Model, s: Setup, state: State, cfl: Float[Array, ""]) -> Float[Array, ""]:
     """The CFL-limited step ``cfl h / max_p(c_p + |v_p|)`` of the current state (SPEC 5)."""
     c = _sound_speed(model, s, state)
@@ -169,8 +183,7 @@ def step(
     stencil = interp.stencil(grid, body.r0, x, F, _particle_corners(state, body))
 
     # 1. Particle to grid: mass and momentum (artificial particles join here, and only here).
-    mass = grid.scatter(stencil.idx, stencil.w * m[:, None])
-    momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, state.C, m))
+    mass, momentum = _transfer_to_grid(grid, transfer, stencil, x, v, state.C, m)
     mass_all = mass
     pre_checks = []
     if s.layer is not None:
@@ -180,8 +193,8 @@ def step(
         src = layer.src[:, 0]
         r0_a, m_a = body.r0[src], m[src]
         st_a = interp.stencil(grid, r0_a, x_a, F_a, None, gradients=False)
-        mass_all = mass_all + grid.scatter(st_a.idx, st_a.w * m_a[:, None])
-        momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
+        mass_a, momentum_a = _transfer_to_grid(grid, transfer, st_a, x_a, v_a, C_a, m_a)
+        mass_all, momentum = mass_all + mass_a, momentum + momentum_a
         lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a[:, 0], x_a[:, 0])
         pre_checks.append(
             (st_bits.LEFT_GRID, _on_sources(body.n, src, (lo < grid.x_min[0]) | (hi >= grid.x_max[0])))

@@ -79,6 +79,12 @@ def _parser() -> argparse.ArgumentParser:
         help="fail a step with dt > X h / max(c + |v|); 'none' disables (default 1.0)",
     )
     run.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    run.add_argument(
+        "--vtk", metavar="DIR", help="write ParaView files (particles, grid, .pvd series) to DIR"
+    )
+    run.add_argument(
+        "--vtk-every", type=int, metavar="K", help="with --vtk: a frame every K steps (steps/10)"
+    )
     run.add_argument("--out", metavar="FILE", help="run in chunks and save the run to FILE (.npz)")
     run.add_argument("--checkpoint-every", type=int, metavar="N", help="with --out: save every N chunks")
     run.add_argument("--chunk", type=int, default=1000, metavar="STEPS", help="with --out: steps per chunk")
@@ -272,9 +278,24 @@ def _cmd_run(args) -> int:
         timing = dict(dt=args.dt, steps=args.steps)
     if args.checkpoint_every is not None and args.out is None:
         raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
+    if args.vtk_every is not None and args.vtk is None:
+        raise UsageError("--vtk-every needs --vtk DIR to write the frames to")
+    if args.vtk is not None:
+        if args.out is not None:
+            raise UsageError("--vtk writes a run's saved frames; it does not combine with --out")
+        every = args.vtk_every if args.vtk_every is not None else max(1, (args.steps or args.max_steps) // 10)
+        if every < 1:
+            raise UsageError(f"--vtk-every must be an integer >= 1, got {every}")
+        fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
+        settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
     try:
         if args.out is None:
-            sol, compile_s, wall_s = jm.simulate_timed(scene, interp, **timing, **settings)
+            try:
+                sol, compile_s, wall_s = jm.simulate_timed(scene, interp, **timing, **settings)
+            except jm.SimulationError as e:  # the good frames are written before the error is reported
+                if args.vtk is not None:
+                    _write_vtk(args.vtk, scene, interp, settings, e.solution)
+                raise
         else:
             sol, compile_s, wall_s = jm.long_run.run_timed(
                 scene,
@@ -313,7 +334,18 @@ def _cmd_run(args) -> int:
         run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
     if args.out is not None:
         run["out"] = str(args.out)
+    if args.vtk is not None:
+        paths = _write_vtk(args.vtk, scene, interp, settings, sol)
+        run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
     return _report(run, scene, sol, compile_s, wall_s, grad, grad_s, args.json)
+
+
+def _write_vtk(out_dir, scene, interp, settings, sol):
+    import jaxmpm as jm
+
+    keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
+    model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
+    return jm.vtk.write_series(out_dir, model, sol)
 
 
 def _cmd_resume(args) -> int:

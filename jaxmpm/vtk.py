@@ -1,0 +1,185 @@
+"""ParaView output: particles and grid fields as VTK files, and a ``.pvd`` time series.
+
+Legacy VTK, binary (big-endian, as the format requires), which ParaView, VisIt and meshio read:
+
+- particles: ``UNSTRUCTURED_GRID`` of one vertex cell per particle, point data ``v`` (vector), ``F`` and
+  ``sigma`` (3x3 tensors, padded with the identity for ``F`` and zeros for ``sigma`` beyond
+  ``dim``), ``J = det F`` and ``X`` (reference position);
+- grid: ``STRUCTURED_POINTS`` over the nodes, point data ``mass`` and ``velocity`` from the
+  particle-to-grid transfer the step itself makes (the same stencil and transfer), without the
+  artificial particles: what the real body puts on the grid.
+
+Positions have ``dim`` components and are padded to 3 with zeros (a 1D run lies along x). The grid
+file is written for the grid as it is today, one axis of ``n_nodes`` nodes; the particle file
+already takes any ``dim``.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+from collections.abc import Mapping
+
+import jax.numpy as jnp
+import numpy as np
+
+from ._util import det
+
+
+def _pad_vectors(a: np.ndarray) -> np.ndarray:
+    out = np.zeros((a.shape[0], 3))
+    out[:, : a.shape[1]] = a
+    return out
+
+
+def _pad_tensors(a: np.ndarray, fill_identity: bool) -> np.ndarray:
+    n, d = a.shape[0], a.shape[1]
+    out = np.zeros((n, 3, 3))
+    if fill_identity:
+        out[:] = np.eye(3)
+    out[:, :d, :d] = a
+    return out.reshape(n, 9)
+
+
+def _be(a: np.ndarray, dtype: str) -> bytes:
+    return np.ascontiguousarray(a, dtype=dtype).tobytes()
+
+
+def _point_data(fields: Mapping[str, np.ndarray], n: int) -> bytes:
+    parts = [f"POINT_DATA {n}\n".encode()]
+    for name, a in fields.items():
+        a = np.asarray(a, dtype=float)
+        if a.shape[0] != n:
+            raise ValueError(f"field {name!r} has {a.shape[0]} values, expected {n}")
+        if a.ndim == 1:
+            parts.append(f"SCALARS {name} double 1\nLOOKUP_TABLE default\n".encode())
+        elif a.ndim == 2 and a.shape[1] == 3:
+            parts.append(f"VECTORS {name} double\n".encode())
+        elif a.ndim == 2 and a.shape[1] == 9:
+            parts.append(f"TENSORS {name} double\n".encode())
+        else:
+            raise ValueError(f"field {name!r}: shape {a.shape} is not (n,), (n, 3) or (n, 9)")
+        parts.append(_be(a, ">f8") + b"\n")
+    return b"".join(parts)
+
+
+def write_particles(
+    path: str | os.PathLike, x, fields: Mapping[str, np.ndarray] | None = None
+) -> pathlib.Path:
+    """Write particles at positions ``x`` (``(n, dim)``) with point data ``fields``: arrays of shape
+    ``(n,)`` (scalars), ``(n, 3)`` (vectors) or ``(n, 9)`` (3x3 tensors, row-major)."""
+    x = _pad_vectors(np.asarray(x, dtype=float))
+    n = x.shape[0]
+    cells = np.stack([np.ones(n, dtype=np.int64), np.arange(n)], axis=1)
+    body = [
+        b"# vtk DataFile Version 3.0\njaxmpm particles\nBINARY\nDATASET UNSTRUCTURED_GRID\n",
+        f"POINTS {n} double\n".encode(),
+        _be(x, ">f8"),
+        f"\nCELLS {n} {2 * n}\n".encode(),
+        _be(cells, ">i4"),
+        f"\nCELL_TYPES {n}\n".encode(),
+        _be(np.ones(n), ">i4"),  # VTK_VERTEX
+        b"\n",
+        _point_data(fields or {}, n),
+    ]
+    path = pathlib.Path(path)
+    path.write_bytes(b"".join(body))
+    return path
+
+
+def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) -> pathlib.Path:
+    """Write node fields of ``grid`` (a ``jm.Grid``) as ``STRUCTURED_POINTS``; ``fields`` as for
+    ``write_particles``, one value per node."""
+    dim = grid.dim
+    shape = [grid.n_nodes] + [1] * (3 - dim)
+    origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
+    h = float(grid.h)
+    spacing = [h] * dim + [1.0] * (3 - dim)
+    header = (
+        "# vtk DataFile Version 3.0\njaxmpm grid\nBINARY\nDATASET STRUCTURED_POINTS\n"
+        f"DIMENSIONS {' '.join(str(s) for s in shape)}\n"
+        f"ORIGIN {' '.join(repr(o) for o in origin)}\n"
+        f"SPACING {' '.join(repr(s) for s in spacing)}\n"
+    )
+    path = pathlib.Path(path)
+    path.write_bytes(header.encode() + _point_data(fields, grid.n_nodes))
+    return path
+
+
+def nodal_fields(model, state) -> dict[str, np.ndarray]:
+    """Nodal ``mass`` and ``velocity`` (momentum / mass, zero on empty nodes) of ``state``, from the
+    particle-to-grid transfer of ``model`` (a ``jm.Model``), real particles only."""
+    from ._step import particle_to_grid, setup
+
+    s = setup(model)
+    mass, momentum = particle_to_grid(model, s, state)
+    occupied = mass > s.tiny
+    velocity = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass, 1.0)[:, None], 0.0)
+    return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
+
+
+def particle_fields(state, body) -> dict[str, np.ndarray]:
+    """The particle point data written by ``write_series``: ``v``, ``F``, ``sigma``, ``J``, ``X``."""
+    return {
+        "v": _pad_vectors(np.asarray(state.v)),
+        "F": _pad_tensors(np.asarray(state.F), fill_identity=True),
+        "sigma": _pad_tensors(np.asarray(state.sigma), fill_identity=False),
+        "J": np.asarray(det(state.F)),
+        "X": _pad_vectors(np.asarray(body.X)),
+    }
+
+
+def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Path]:
+    """One particle file and one grid file per saved time of ``solution`` (run with a ``SaveAt`` that
+    keeps ``x``, ``v``, ``F`` and ``sigma``, and ``corners`` for MPQ, ``C`` for APIC), plus
+    ``particles.pvd`` and ``grid.pvd``, the collections ParaView opens as time series.
+
+    Saved times after a breakdown repeat the last good state and are left out, so a run that broke
+    down still leaves every good frame.
+    """
+    if solution.history is None:
+        raise ValueError(
+            "write_series needs a solution with a history: simulate(..., saveat=SaveAt(every=k))"
+        )
+    needed = ["x", "v", "F", "sigma"]
+    needed += ["corners"] if model.interpolator.tracks_corners else []
+    needed += ["C"] if model.transfer.affine else []
+    missing = [f for f in needed if f not in solution.history]
+    if missing:
+        raise ValueError(f"the saved history lacks {missing}: add them to SaveAt(fields=...)")
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ts = np.asarray(solution.ts)
+    t_last = float(solution.state.t)
+    keep = [i for i, t in enumerate(ts) if t <= t_last * (1 + 1e-12) + 1e-300]
+    paths, entries = [], {"particles": [], "grid": []}
+    for frame, i in enumerate(keep):
+        state = _state_at(solution, i)
+        p = write_particles(
+            out / f"particles_{frame:05d}.vtk", state.x, particle_fields(state, solution.body)
+        )
+        g = write_grid(out / f"grid_{frame:05d}.vtk", _grid(model), nodal_fields(model, state))
+        paths += [p, g]
+        entries["particles"].append((ts[i], p.name))
+        entries["grid"].append((ts[i], g.name))
+    for kind, items in entries.items():
+        lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
+        lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
+        lines += ["</Collection>", "</VTKFile>", ""]
+        pvd = out / f"{kind}.pvd"
+        pvd.write_text("\n".join(lines))
+        paths.append(pvd)
+    return paths
+
+
+def _grid(model):
+    return model.scene.grid()
+
+
+def _state_at(solution, i: int):
+    """The state of saved frame ``i`` (fields not saved keep the final state's values)."""
+    import equinox as eqx
+
+    names = [n for n in solution.history if n in ("x", "v", "F", "sigma", "C", "corners", "x_traction")]
+    values = [solution.history[n][i] for n in names]
+    return eqx.tree_at(lambda s: [getattr(s, n) for n in names], solution.state, values)
