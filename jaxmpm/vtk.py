@@ -134,8 +134,8 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     keeps ``x``, ``v``, ``F`` and ``sigma``, and ``corners`` for MPQ, ``C`` for APIC), plus
     ``particles.pvd`` and ``grid.pvd``, the collections ParaView opens as time series.
 
-    Saved times after a breakdown repeat the last good state and are left out, so a run that broke
-    down still leaves every good frame.
+    Saved times after a breakdown repeat the last good state and are left out. The final state
+    (after a breakdown, the last good one) is the last frame, added when it falls between saves.
     """
     if solution.history is None:
         raise ValueError(
@@ -151,17 +151,18 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     out.mkdir(parents=True, exist_ok=True)
     ts = np.asarray(solution.ts)
     t_last = float(solution.state.t)
-    keep = [i for i, t in enumerate(ts) if t <= t_last * (1 + 1e-12) + 1e-300]
+    keep = [i for i, t in enumerate(ts) if t <= t_last * (1 + 1e-12)]
+    frames = [(ts[i], _state_at(solution, i)) for i in keep]
+    if not keep or t_last > ts[keep[-1]] * (1 + 1e-12):
+        frames.append((t_last, solution.state))
     paths, entries = [], {"particles": [], "grid": []}
-    for frame, i in enumerate(keep):
-        state = _state_at(solution, i)
-        p = write_particles(
-            out / f"particles_{frame:05d}.vtk", state.x, particle_fields(state, solution.body)
-        )
+    for frame, (t, state) in enumerate(frames):
+        fields = particle_fields(state, solution.body)
+        p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields)
         g = write_grid(out / f"grid_{frame:05d}.vtk", _grid(model), nodal_fields(model, state))
         paths += [p, g]
-        entries["particles"].append((ts[i], p.name))
-        entries["grid"].append((ts[i], g.name))
+        entries["particles"].append((t, p.name))
+        entries["grid"].append((t, g.name))
     for kind, items in entries.items():
         lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
         lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
