@@ -46,6 +46,14 @@ def check_greater(name: str, value, bound: float) -> None:
             raise ValueError(f"{name} must be > {bound}, got {_show(arr)}")
 
 
+def check_less(name: str, value, bound: float) -> None:
+    check_finite(name, value)
+    if is_concrete(value):
+        arr = np.asarray(value)
+        if not np.all(arr < bound):
+            raise ValueError(f"{name} must be < {bound}, got {_show(arr)}")
+
+
 def check_int(name: str, value, minimum: int) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")

@@ -7,11 +7,12 @@ particle's ``F`` (shape ``(dim, dim)``) to its Cauchy stress; the 1D models read
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._checks import check_greater, check_nonnegative, check_positive
-from ._util import as_float
+from ._checks import check_greater, check_less, check_nonnegative, check_positive
+from ._util import as_float, det
 
 
 class AbstractMaterial(eqx.Module):
@@ -28,6 +29,25 @@ class AbstractMaterial(eqx.Module):
     @abc.abstractmethod
     def sound_speed(self, F: Float[Array, "dim dim"], rho0: Float[Array, ""]) -> Float[Array, ""]:
         """Eulerian wave speed, used by the stable time step ``dt <= CFL h / max(c + |v|)``."""
+
+    def acoustic_speed(self, F: Float[Array, "dim dim"], rho0: Float[Array, ""]) -> Float[Array, ""]:
+        """The largest longitudinal wave speed of the state ``F``, from the stored energy alone.
+
+        ``rho c^2`` is the largest eigenvalue of the acoustic tensor ``Q_ik(n) = (1 / rho0) m_J m_L
+        d2W / dF_iJ dF_kL`` with ``m = F^T n``, over ``n`` along the principal directions of ``B =
+        F F^T`` (Marsden & Hughes, "Mathematical foundations of elasticity", ch. 6). In 1D it is
+        ``F sqrt(W''(F) / rho0)``, the closed forms of the 1D models; in 2D and 3D it serves models
+        without one (a Hessian of ``W`` and two small eigenproblems per particle).
+        """
+        H = jax.hessian(self.energy_density)(F)  # (dim, dim, dim, dim): d2W / dF_iJ dF_kL
+        _, N = jnp.linalg.eigh(F @ F.T)
+
+        def c2(n):
+            m = F.T @ n
+            Q = jnp.einsum("iJkL,J,L->ik", H, m, m) / rho0
+            return jnp.max(jnp.linalg.eigvalsh(Q))
+
+        return jnp.sqrt(jnp.maximum(jnp.max(jax.vmap(c2, in_axes=1)(N)), 0.0))
 
     def sound_speed_from_stress(
         self, F: Float[Array, "dim dim"], sigma: Float[Array, "dim dim"], rho0: Float[Array, ""]
@@ -81,38 +101,60 @@ class AdiabaticGas(AbstractMaterial):
 
 
 class LinearElastic(AbstractMaterial):
-    """Lagrangian linear elastic bar, 1D: ``sigma = E (F - 1)``, ``c = sqrt(E / rho0)`` (SPEC 5).
+    """Linear elastic solid, small strain: ``sigma = lambda tr(eps) I + 2 mu eps``, ``eps = sym(F) - I``.
+
+    ``lambda = E nu / ((1 + nu)(1 - 2 nu))`` and ``mu = E / (2 (1 + nu))``. With the default
+    ``nu = 0`` the 1D bar of SPEC 5 follows exactly: ``sigma = E (F - 1)``, ``c = sqrt(E / rho0)``.
+    The wave speed is the P-wave speed ``sqrt((lambda + 2 mu) / rho0)``, independent of ``F`` (the
+    model is meant for small strains, where Cauchy, first Piola and the linear stress agree).
 
     Attributes:
         E: Young's modulus.
+        nu: Poisson's ratio, in ``[0, 0.5)`` (default 0).
     """
 
     E: Float[Array, ""] = eqx.field(converter=as_float)
+    nu: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
 
     def __check_init__(self):
         check_positive("E", self.E)
+        check_nonnegative("nu", self.nu)
+        check_less("nu", self.nu, 0.5)
+
+    def lame(self):
+        """``(lambda, mu)``."""
+        lam = self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+        return lam, self.E / (2.0 * (1.0 + self.nu))
+
+    def _strain(self, F):
+        return 0.5 * (F + F.T) - jnp.eye(F.shape[0], dtype=F.dtype)
 
     def stress(self, F):
-        if F.shape[0] != 1:
-            raise NotImplementedError("LinearElastic is the 1D bar model; F must be 1x1")
-        return self.E * (F - 1.0)
+        lam, mu = self.lame()
+        eps = self._strain(F)
+        return lam * jnp.trace(eps) * jnp.eye(F.shape[0], dtype=F.dtype) + 2.0 * mu * eps
 
     def energy_density(self, F):
-        return 0.5 * self.E * jnp.square(F[0, 0] - 1.0)
+        lam, mu = self.lame()
+        eps = self._strain(F)
+        return 0.5 * lam * jnp.square(jnp.trace(eps)) + mu * jnp.sum(eps * eps)
 
     def sound_speed(self, F, rho0):
         del F
-        return jnp.sqrt(self.E / rho0)
+        lam, mu = self.lame()
+        return jnp.sqrt((lam + 2.0 * mu) / rho0)
 
 
 class NeoHookean(AbstractMaterial):
-    """Compressible neo-Hookean solid in 1D: ``sigma = lambda ln(F) / F + mu (F - 1 / F)``.
+    """Compressible neo-Hookean solid: ``sigma = (lambda ln J / J) I + (mu / J) (B - I)``.
 
-    The 1D (uniaxial strain) reading of ``sigma = (lambda ln J / J) I + (mu / J) (B - I)`` with
-    ``B = F^2`` (Bonet & Wood, "Nonlinear continuum mechanics", sec. 5.4). With unit cross-section the
-    first Piola stress equals ``sigma`` (SPEC 1), so ``W = lambda ln(F)^2 / 2 + mu ((F^2 - 1) / 2 -
-    ln F)`` and the Lagrangian wave speed is ``sqrt(dsigma/dF / rho0)``; the Eulerian one used by the
-    stable time step is ``F`` times that. At ``F = 1`` it is ``sqrt((lambda + 2 mu) / rho0)``.
+    ``B = F F^T``, ``J = det F`` (Bonet & Wood, "Nonlinear continuum mechanics", sec. 5.4), from
+    ``W = mu / 2 (tr(F^T F) - dim) - mu ln J + lambda / 2 (ln J)^2``. In 1D (uniaxial strain, unit
+    cross-section, where the first Piola stress equals ``sigma``) it reads ``sigma = lambda ln(F) / F
+    + mu (F - 1 / F)``, the Lagrangian wave speed is ``sqrt(dsigma/dF / rho0)`` and the Eulerian one,
+    used by the stable time step, ``F`` times that; at ``F = 1`` it is ``sqrt((lambda + 2 mu) /
+    rho0)``. In 2D and 3D the wave speed is the largest longitudinal one of the current state
+    (``AbstractMaterial.acoustic_speed``).
 
     Attributes:
         lam: first Lame parameter (>= 0).
@@ -126,22 +168,19 @@ class NeoHookean(AbstractMaterial):
         check_nonnegative("lam", self.lam)
         check_positive("mu", self.mu)
 
-    def _F(self, F):
-        if F.shape[0] != 1:
-            raise NotImplementedError("NeoHookean is the 1D model; F must be 1x1")
-        return F[0, 0]
-
     def stress(self, F):
-        f = self._F(F)
-        return jnp.reshape(self.lam * jnp.log(f) / f + self.mu * (f - 1.0 / f), (1, 1))
+        J = det(F)
+        eye = jnp.eye(F.shape[0], dtype=F.dtype)
+        return (self.lam * jnp.log(J) * eye + self.mu * (F @ F.T - eye)) / J
 
     def energy_density(self, F):
-        f = self._F(F)
-        ln = jnp.log(f)
-        return 0.5 * self.lam * ln * ln + self.mu * (0.5 * (f * f - 1.0) - ln)
+        ln = jnp.log(det(F))
+        return 0.5 * self.mu * (jnp.sum(F * F) - F.shape[0]) - self.mu * ln + 0.5 * self.lam * ln * ln
 
     def sound_speed(self, F, rho0):
-        f = self._F(F)
+        if F.shape[0] > 1:
+            return self.acoustic_speed(F, rho0)
+        f = F[0, 0]
         # dsigma/dF = lambda (1 - ln F) / F^2 + mu (1 + 1 / F^2); it turns negative (the material
         # softens) only for ln F > 1 + mu / lambda, where the speed is taken as zero.
         stiffness = self.lam * (1.0 - jnp.log(f)) / (f * f) + self.mu * (1.0 + 1.0 / (f * f))
