@@ -134,8 +134,9 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     keeps ``x``, ``v``, ``F`` and ``sigma``, and ``corners`` for MPQ, ``C`` for APIC), plus
     ``particles.pvd`` and ``grid.pvd``, the collections ParaView opens as time series.
 
-    Saved times after a breakdown repeat the last good state and are left out. The final state
-    (after a breakdown, the last good one) is the last frame, added when it falls between saves.
+    Saved times after a breakdown, or past ``t_end`` in a run to an end time, repeat the final
+    state and are left out. The final state (after a breakdown, the last good one) is the last
+    frame, added when it falls between saves.
     """
     if solution.history is None:
         raise ValueError(
@@ -151,7 +152,10 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     out.mkdir(parents=True, exist_ok=True)
     ts = np.asarray(solution.ts)
     t_last = float(solution.state.t)
-    keep = [i for i, t in enumerate(ts) if t <= t_last * (1 + 1e-12)]
+    keep = []  # saved times up to the final state's, each once (a run to t_end, or a broken run,
+    for i, t in enumerate(ts):  # saves its final state again at every save that follows)
+        if t <= t_last * (1 + 1e-12) and (not keep or t > ts[keep[-1]]):
+            keep.append(i)
     frames = [(ts[i], _state_at(solution, i)) for i in keep]
     if not keep or t_last > ts[keep[-1]] * (1 + 1e-12):
         frames.append((t_last, solution.state))

@@ -136,6 +136,18 @@ def test_a_broken_run_keeps_its_good_frames(tmp_path):
     assert f'timestep="{float(sol.state.t)!r}"' in pvd
 
 
+def test_a_run_to_an_end_time_writes_each_time_once(tmp_path):
+    scene = jm.GasExpansion(cells=4, pad=6)
+    saveat = jm.SaveAt(every=10, fields=("x", "v", "F", "sigma"))
+    sol = jm.simulate(scene, jm.CPDI(), t_end=2e-4, cfl=0.5, max_steps=400, saveat=saveat)
+    assert int(sol.state.step) < 300  # so several saves come after t_end and repeat the final state
+    jm.vtk.write_series(tmp_path, jm.Model(scene, jm.CPDI(), jm.FLIP()), sol)
+    times = [float(t) for t in re.findall(r'timestep="([^"]+)"', (tmp_path / "grid.pvd").read_text())]
+    assert times == sorted(set(times)) and times[0] == 0.0 and times[-1] == float(sol.state.t) == 2e-4
+    last = read_legacy(tmp_path / f"particles_{len(times) - 1:05d}.vtk")
+    np.testing.assert_array_equal(last["fields"]["F"][:, 0, 0], np.asarray(sol.state.F[:, 0, 0]))
+
+
 def test_write_series_needs_the_fields(tmp_path):
     scene = jm.GasExpansion(cells=4, pad=6)
     sol = jm.simulate(scene, jm.SPQ(), dt=1e-5, steps=4)
