@@ -159,6 +159,22 @@ def test_bench_command_rejects_bad_input(argv, named, capsys):
     assert named in err and err.count("\n") == 1
 
 
+def test_a_reference_code_that_breaks_down_is_reported(monkeypatch):
+    """A reference code has no checks; its breakdown shows as a non-finite F, and NumPy's bincount
+    raises on the NaN index. Either way the row says status NONFINITE rather than a speed."""
+
+    def broken(n, steps, dtype, fold=False):
+        raise ValueError("'list' argument must have no negative elements")
+
+    monkeypatch.setitem(_baselines.BASELINES, "NumPy", broken)
+    monkeypatch.setitem(_baselines.BASELINES, "plain JAX", lambda n, s, d: (0.1, 0.2, float("nan")))
+    out = bench.worker("f64", [200], 5, ["numpy", "jax"], [], extras=False)
+    assert [(r["code"], r["status"]) for r in out["rows"]] == [
+        ("NumPy", st_bits.NONFINITE),
+        ("plain JAX", st_bits.NONFINITE),
+    ]
+
+
 def test_reverse_mode_measurement_small():
     rows = bench.reverse_mode(step_counts=(16, 64))
     for r in rows:
