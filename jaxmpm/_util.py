@@ -19,8 +19,21 @@ def tree_where(pred, on_true, on_false):
 
 
 def det(F):
-    """``det F`` of each particle, ``F`` of shape ``(..., dim, dim)`` (the entry itself in 1D)."""
-    return F[..., 0, 0] if F.shape[-1] == 1 else jnp.linalg.det(F)
+    """``det F`` of each particle, ``F`` of shape ``(..., dim, dim)``: closed forms up to 3x3 (the
+    entry itself in 1D), which fuse, where ``jnp.linalg.det`` runs an LU factorisation per matrix."""
+    d = F.shape[-1]
+    if d == 1:
+        return F[..., 0, 0]
+    if d == 2:
+        return F[..., 0, 0] * F[..., 1, 1] - F[..., 0, 1] * F[..., 1, 0]
+    if d == 3:
+        a, b, c = F[..., 0, 0], F[..., 0, 1], F[..., 0, 2]
+        return (
+            a * (F[..., 1, 1] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 1])
+            - b * (F[..., 1, 0] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 0])
+            + c * (F[..., 1, 0] * F[..., 2, 1] - F[..., 1, 1] * F[..., 2, 0])
+        )
+    return jnp.linalg.det(F)
 
 
 def contract(spec: str, a: Array, b: Array) -> Array:

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_greater, check_less, check_nonnegative, check_positive
-from ._util import as_float, det
+from ._util import as_float, contract, det
 
 
 class AbstractMaterial(eqx.Module):
@@ -83,20 +83,20 @@ class AdiabaticGas(AbstractMaterial):
         return self.P0 * J ** (-self.gamma) - self.p_atm
 
     def stress(self, F):
-        J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
+        J = det(F)
         return -self.pressure(J) * jnp.eye(F.shape[0], dtype=F.dtype)
 
     def energy_density(self, F):
-        J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
+        J = det(F)
         return self.P0 * (J ** (1.0 - self.gamma) - 1.0) / (self.gamma - 1.0) + self.p_atm * (J - 1.0)
 
     def sound_speed(self, F, rho0):
-        J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
+        J = det(F)
         return jnp.sqrt(self.gamma * self.P0 * J ** (1.0 - self.gamma) / rho0)
 
     def sound_speed_from_stress(self, F, sigma, rho0):
         # P0 J^-gamma = p_atm - sigma_00, so c^2 = gamma (p_atm - sigma_00) J / rho0: no power.
-        J = jnp.linalg.det(F) if F.shape[0] > 1 else F[0, 0]
+        J = det(F)
         return jnp.sqrt(jnp.maximum(self.gamma * (self.p_atm - sigma[0, 0]) * J / rho0, 0.0))
 
 
@@ -171,7 +171,8 @@ class NeoHookean(AbstractMaterial):
     def stress(self, F):
         J = det(F)
         eye = jnp.eye(F.shape[0], dtype=F.dtype)
-        return (self.lam * jnp.log(J) * eye + self.mu * (F @ F.T - eye)) / J
+        B = contract("ab,cb->ac", F, F)  # F F^T, unrolled (a matmul is slow per particle on CPU)
+        return (self.lam * jnp.log(J) * eye + self.mu * (B - eye)) / J
 
     def energy_density(self, F):
         ln = jnp.log(det(F))
