@@ -646,8 +646,8 @@ def _cmd_bench(args) -> int:
         sizes = [int(t) for t in args.sizes.split(",")]
     except ValueError:
         raise UsageError(f"--sizes must be comma-separated integers, got {args.sizes!r}") from None
-    if any(n < 2 for n in sizes):
-        raise UsageError(f"--sizes must be particle counts >= 2, got {args.sizes!r}")
+    if any(n < 2 or n % 2 for n in sizes):
+        raise UsageError(f"--sizes must be even particle counts >= 2 (two per cell), got {args.sizes!r}")
     if args.steps < 2:
         raise UsageError(f"--steps must be an integer >= 2, got {args.steps}")
     dtypes = names(args.dtypes, "--dtypes", ("f32", "f64"))

@@ -149,6 +149,7 @@ def test_bench_command_json_and_files(tmp_path, capsys):
         (["--codes", "numpy,fortran"], "--codes"),
         (["--dtypes", "f16"], "--dtypes"),
         (["--sizes", "1k"], "--sizes"),
+        (["--sizes", "1001"], "--sizes"),
         (["--steps", "1"], "--steps"),
         (["--interpolators", "sph"], "--interpolators"),
     ],
