@@ -24,27 +24,11 @@ import subprocess
 import sys
 import time
 
+from jaxmpm.bench import reverse_objective as objective
+from jaxmpm.bench import xla_bytes
+
 STEPS = (1_000, 10_000, 100_000)
 SMALL_STEPS = (200, 1_000)
-
-
-def objective(steps: int, checkpoint):
-    import jaxmpm as jm
-
-    h = 0.002
-    dt = 0.1 * h / (1.4 * 2.0e5) ** 0.5
-
-    def f(beta):
-        scene = jm.GasExpansion(cells=500, ppc=2, h=h, beta=beta, pad=60)
-        sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps, artificial_cells=1, checkpoint=checkpoint)
-        return jm.errors(scene, sol.state, sol.body)["F_rms_rel"]
-
-    return f
-
-
-def xla_bytes(compiled) -> int:
-    m = compiled.memory_analysis()
-    return int(m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes)
 
 
 def one(mode: str, steps: int) -> dict:

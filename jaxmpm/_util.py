@@ -13,11 +13,6 @@ def as_float(x) -> Array:
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
-def tree_where(pred, on_true, on_false):
-    """Leafwise ``jnp.where(pred, a, b)`` over two pytrees of the same structure."""
-    return jax.tree.map(lambda a, b: jnp.where(pred, a, b), on_true, on_false)
-
-
 def det(F):
     """``det F`` of each particle, ``F`` of shape ``(..., dim, dim)``: closed forms up to 3x3 (the
     entry itself in 1D), which fuse, where ``jnp.linalg.det`` runs an LU factorisation per matrix."""

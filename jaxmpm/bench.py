@@ -95,44 +95,51 @@ def jaxmpm_step(name: str, n: int, steps: int):
     return t1 - t0, t2 - t1, float(jnp.mean(state.F)), int(state.status)
 
 
-def reverse_mode(step_counts=(250, 1_000, 4_000)) -> list[dict]:
-    """Forward run against ``jax.grad`` through the checkpointed loop (``checkpoint=True``).
-
-    The problem of ``experiments/grad_memory.py``: the gas expansion with 1,000 particles (500 cells,
-    ``h = 2 mm``, ``beta = 2 /s``), MPQ with artificial cells, ``dt = 0.1 h / c0``; the objective is
-    the final RMS relative F error, differentiated in ``beta``. XLA's buffer account (arguments,
-    outputs, temporaries) of each compiled computation measures memory; plain (uncheckpointed)
-    reverse mode is compiled for its account only.
-    """
-    import jax
-    import jax.numpy as jnp
-
+def reverse_objective(steps: int, checkpoint):
+    """``beta -> final RMS relative F error`` of the reverse-mode problem (also that of
+    ``experiments/grad_memory.py``): the gas expansion with 1,000 particles (500 cells, ``h = 2 mm``),
+    MPQ with artificial cells, ``dt = 0.1 h / c0``, ``steps`` steps."""
     import jaxmpm as jm
 
     h = 0.002
     dt = 0.1 * h / (1.4 * 2.0e5) ** 0.5
+
+    def f(beta):
+        scene = jm.GasExpansion(cells=500, ppc=2, h=h, beta=beta, pad=60)
+        sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps, artificial_cells=1, checkpoint=checkpoint)
+        return jm.errors(scene, sol.state, sol.body)["F_rms_rel"]
+
+    return f
+
+
+def xla_bytes(compiled) -> int:
+    """XLA's buffer account of a compiled computation: arguments, outputs and temporaries."""
+    m = compiled.memory_analysis()
+    return int(m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes)
+
+
+def reverse_mode(step_counts=(250, 1_000, 4_000)) -> list[dict]:
+    """Forward run against ``jax.grad`` through the checkpointed loop (``checkpoint=True``), on
+    ``reverse_objective`` at ``beta = 2 /s``, differentiated in ``beta``. ``xla_bytes`` of each
+    compiled computation measures memory; plain (uncheckpointed) reverse mode is compiled for its
+    account only.
+    """
+    import jax
+    import jax.numpy as jnp
+
     rows = []
     for steps in step_counts:
-
-        def objective(beta, checkpoint, steps=steps):
-            scene = jm.GasExpansion(cells=500, ppc=2, h=h, beta=beta, pad=60)
-            sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps, artificial_cells=1, checkpoint=checkpoint)
-            return jm.errors(scene, sol.state, sol.body)["F_rms_rel"]
-
         beta = jnp.asarray(2.0)
         row = dict(particles=1_000, steps=steps, interpolator="mpq")
         for mode, fn in (
-            ("forward", jax.jit(lambda b: objective(b, False))),
-            ("reverse", jax.jit(jax.grad(lambda b: objective(b, True)))),
-            ("plain_reverse", jax.jit(jax.grad(lambda b: objective(b, False)))),
+            ("forward", jax.jit(reverse_objective(steps, False))),
+            ("reverse", jax.jit(jax.grad(reverse_objective(steps, True)))),
+            ("plain_reverse", jax.jit(jax.grad(reverse_objective(steps, False)))),
         ):
             t0 = time.perf_counter()
             compiled = fn.lower(beta).compile()
             row[f"{mode}_compile_s"] = time.perf_counter() - t0
-            m = compiled.memory_analysis()
-            row[f"{mode}_xla_bytes"] = int(
-                m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes
-            )
+            row[f"{mode}_xla_bytes"] = xla_bytes(compiled)
             if mode != "plain_reverse":
                 jax.block_until_ready(compiled(beta))  # a warm run, then the timed one
                 t0 = time.perf_counter()

@@ -106,12 +106,13 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
     return path
 
 
-def nodal_fields(model, state) -> dict[str, np.ndarray]:
+def nodal_fields(model, state, s=None) -> dict[str, np.ndarray]:
     """Nodal ``mass`` and ``velocity`` (momentum / mass, zero on empty nodes) of ``state``, from the
-    particle-to-grid transfer of ``model`` (a ``jm.Model``), real particles only."""
+    particle-to-grid transfer of ``model`` (a ``jm.Model``), real particles only. ``s`` is the run's
+    ``jm.setup(model)``, derived here when not given."""
     from ._step import particle_to_grid, setup
 
-    s = setup(model)
+    s = setup(model) if s is None else s
     mass, momentum = particle_to_grid(model, s, state)
     occupied = mass > s.tiny
     velocity = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass, 1.0)[:, None], 0.0)
@@ -159,11 +160,14 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     frames = [(ts[i], _state_at(solution, i)) for i in keep]
     if not keep or t_last > ts[keep[-1]] * (1 + 1e-12):
         frames.append((t_last, solution.state))
+    from ._step import setup
+
+    s = setup(model)  # once for the series: the grid and the body do not change
     paths, entries = [], {"particles": [], "grid": []}
     for frame, (t, state) in enumerate(frames):
         fields = particle_fields(state, solution.body)
         p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields)
-        g = write_grid(out / f"grid_{frame:05d}.vtk", _grid(model), nodal_fields(model, state))
+        g = write_grid(out / f"grid_{frame:05d}.vtk", s.grid, nodal_fields(model, state, s))
         paths += [p, g]
         entries["particles"].append((t, p.name))
         entries["grid"].append((t, g.name))
@@ -175,10 +179,6 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
         pvd.write_text("\n".join(lines))
         paths.append(pvd)
     return paths
-
-
-def _grid(model):
-    return model.scene.grid()
 
 
 def _state_at(solution, i: int):
