@@ -63,13 +63,17 @@ from .materials import (
 from .materials import (
     NeoHookean as NeoHookean,
 )
+from .metrics import corner_gap as corner_gap
 from .metrics import diagnostics as diagnostics
+from .metrics import domain_corners as domain_corners
 from .metrics import errors as errors
 from .metrics import separation as separation
 from .particles import Body as Body
 from .particles import State as State
 from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
+from .scenes import AxisAligned as AxisAligned
+from .scenes import Blast as Blast
 from .scenes import GasExpansion as GasExpansion
 from .scenes import GasSlab as GasSlab
 from .scenes import Manufactured as Manufactured

@@ -7,14 +7,15 @@ so the compiled step holds only what the scene and the run declared.
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from . import status as st_bits
 from ._util import contract, det
-from .boundaries import ArtificialLayer, artificial_layer, traction_points, wall_mask
+from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
 from .grid import Grid
 from .interpolators import AbstractInterpolator
-from .interpolators._transfer import point_stencil
+from .interpolators._transfer import any_axis, points_stencil
 from .materials import AbstractMaterial
 from .particles import Body, State
 from .scenes import AbstractScene
@@ -63,14 +64,22 @@ class Setup(eqx.Module):
     body: Body
     material: AbstractMaterial
     layer: ArtificialLayer | None
-    walls: Bool[Array, " n_nodes"] | None
+    walls: Bool[Array, "n_nodes dim"] | None  # velocity components held at zero (walls, symmetry planes)
+    traction: TractionPoints | None
     tiny: Float[Array, ""]  # node masses at or below this are round-off, not mass (see ``step``)
 
 
-def traction_sides(scene: AbstractScene) -> tuple[bool, bool]:
-    """Which ends carry a traction, read from the structure of ``scene.traction``."""
-    left, right = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
-    return left is not None, right is not None
+def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
+    """Which faces carry a traction (low and high face of each axis), read from the structure of
+    ``scene.traction``."""
+    faces = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
+    dim = scene.dim
+    if len(faces) != 2 * dim:
+        raise ValueError(
+            f"{type(scene).__name__}.traction must return {2 * dim} entries (low and high face of each "
+            f"of {dim} axes), got {len(faces)}"
+        )
+    return tuple(f is not None for f in faces)
 
 
 def setup(model: Model) -> Setup:
@@ -82,14 +91,15 @@ def setup(model: Model) -> Setup:
             f"pad must be > artificial_cells so the artificial layer stays on the grid; "
             f"got pad={scene.pad}, artificial_cells={model.artificial_cells}"
         )
-    walls = wall_mask(grid.n_nodes, scene.pad, scene.cells, scene.left, scene.right)
+    walls = fixed_mask(grid.axes, scene.pad, scene.cells, scene.left, scene.right)
     body = scene.body()
     return Setup(
         grid=grid,
         body=body,
         material=scene.material(),
-        layer=artificial_layer(scene.cells, scene.ppc, model.artificial_cells, free),
+        layer=artificial_layer(scene.cells, scene.ppc, model.artificial_cells, free, scene.dim),
         walls=None if walls is None else jnp.asarray(walls),
+        traction=traction_points(scene.cells, scene.ppc, scene.h, traction_sides(scene)),
         tiny=256 * jnp.finfo(body.m.dtype).eps * jnp.max(body.m),
     )
 
@@ -100,7 +110,7 @@ def initial_state(model: Model, s: Setup) -> State:
     n, dim = body.X.shape
     dtype = body.X.dtype
     v = jax.vmap(scene.initial_velocity)(body.X)
-    x_tr = traction_points(body, scene.cells, scene.h, traction_sides(scene))
+    x_tr = None if s.traction is None else s.traction.X
     if scene.initial_position is None:
         x, corners = body.X, body.X_corners
         F = jnp.broadcast_to(jnp.eye(dim, dtype=dtype), (n, dim, dim))
@@ -195,10 +205,8 @@ def step(
         st_a = interp.stencil(grid, r0_a, x_a, F_a, None, gradients=False)
         mass_a, momentum_a = _transfer_to_grid(grid, transfer, st_a, x_a, v_a, C_a, m_a)
         mass_all, momentum = mass_all + mass_a, momentum + momentum_a
-        lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a[:, 0], x_a[:, 0])
-        pre_checks.append(
-            (st_bits.LEFT_GRID, _on_sources(body.n, src, (lo < grid.x_min[0]) | (hi >= grid.x_max[0])))
-        )
+        lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a, x_a)
+        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, src, _off_grid(grid, lo, hi))))
         if st_a.ok is not None:
             pre_checks.append((st_bits.STENCIL, _on_sources(body.n, src, ~st_a.ok)))
     # A node mass below a few hundred ulps of a particle's mass is round-off in the weights (a domain
@@ -216,23 +224,27 @@ def step(
         f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
         pre_checks.append((st_bits.SCENE_DATA, ~jnp.isfinite(b).all(1)))
     if state.x_traction is not None:
-        tractions = scene.traction(t)  # (left, right), each None or a vector
-        tr = jnp.stack([tv for tv in tractions if tv is not None])  # (k, dim)
-        t_idx, t_s, _ = point_stencil(grid, state.x_traction[:, 0])
+        tractions = scene.traction(t)  # per face (low, high of each axis), each None or a vector
+        tr_face = jnp.stack([tv for tv in tractions if tv is not None])  # (loaded faces, dim)
+        tp = s.traction
+        tr = tr_face
+        if tp.area is not None:  # a face's traction per reference area, times each point's area
+            tr = jnp.repeat(tr_face, np.asarray(tp.counts), axis=0, total_repeat_length=sum(tp.counts))
+            tr = tr * tp.area[:, None]
+        t_idx, t_s, _ = points_stencil(grid, state.x_traction, gradients=False)
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
-        ends = [i for i, tv in zip((0, body.n - 1), tractions) if tv is not None]
-        bad_tr = ~jnp.isfinite(tr).all(1)  # reported on the end particle next to the traction
+        bad_tr = ~jnp.isfinite(tr_face).all(1)  # reported on a particle next to the loaded face
         pre_checks.append(
-            (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(ends)].set(bad_tr))
+            (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(tp.report)].set(bad_tr))
         )
     has_mass = mass > s.tiny
-    f = fold_massless(f, has_mass)
+    f = fold_massless(f, has_mass, grid.axes)
 
     # 3. Grid update; inactive nodes (no real mass) get no acceleration; walls hold v = 0.
     a = jnp.where(has_mass[:, None], f / jnp.where(has_mass, mass, 1.0)[:, None], 0.0)
     if s.walls is not None:
-        v_n = jnp.where(s.walls[:, None], 0.0, v_n)
-        a = jnp.where(s.walls[:, None], 0.0, a)
+        v_n = jnp.where(s.walls, 0.0, v_n)
+        a = jnp.where(s.walls, 0.0, a)
     v_new = v_n + dt * a
 
     # 4. Particles. (MUSL: then the nodal velocity is re-projected from the new particle momenta.)
@@ -244,7 +256,7 @@ def step(
             momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
         v_new = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
         if s.walls is not None:
-            v_new = jnp.where(s.walls[:, None], 0.0, v_new)
+            v_new = jnp.where(s.walls, 0.0, v_new)
     x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
 
     # 5. Kinematics, 6. constitutive update.
@@ -280,7 +292,7 @@ def step(
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
-    left_grid = (lo < grid.x_min[0]) | (hi >= grid.x_max[0])
+    left_grid = _off_grid(grid, lo, hi)
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
     if model.cfl_limit is not None:
         speed = _sound_speed(model, s, state) + jnp.linalg.norm(v, axis=1)
@@ -317,7 +329,7 @@ def step(
 
 
 def fold_massless(
-    f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"]
+    f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"], axes: tuple[int, ...] | None = None
 ) -> Float[Array, "n_nodes dim"]:
     """Move force that landed on a node without mass onto the adjacent node with mass.
 
@@ -328,15 +340,58 @@ def fold_massless(
     boundary force, as when the boundary point sits exactly on it, so the result is continuous in
     the boundary position, and the total force is unchanged. Force with no massive neighbour
     within one node is dropped (no interpolator here reaches that far from every mass).
+
+    On a grid of ``axes`` nodes per axis (2D, 3D) the fold goes along one axis at a time, axis 0
+    first: force moves to a neighbour with mass (the lower one first); failing that, a node that can
+    reach mass along the later axes keeps it for them; failing that, it moves to a neighbour that can
+    (so force on a node diagonal to the body's corner reaches the corner node in two moves). Force
+    with no mass within one node along every axis is dropped.
     """
     zero = jnp.zeros_like(f[:1])
-    stray = jnp.where(has_mass[:, None], 0.0, f)
-    left_ok = jnp.concatenate([jnp.zeros((1,), dtype=bool), has_mass[:-1]])
-    right_ok = jnp.concatenate([has_mass[1:], jnp.zeros((1,), dtype=bool)])
-    to_left = jnp.where(left_ok[:, None], stray, 0.0)
-    to_right = jnp.where(~left_ok[:, None] & right_ok[:, None], stray, 0.0)
-    kept = jnp.where(has_mass[:, None], f, 0.0)
-    return kept + jnp.concatenate([to_left[1:], zero]) + jnp.concatenate([zero, to_right[:-1]])
+    if axes is None or len(axes) == 1:
+        stray = jnp.where(has_mass[:, None], 0.0, f)
+        left_ok = jnp.concatenate([jnp.zeros((1,), dtype=bool), has_mass[:-1]])
+        right_ok = jnp.concatenate([has_mass[1:], jnp.zeros((1,), dtype=bool)])
+        to_left = jnp.where(left_ok[:, None], stray, 0.0)
+        to_right = jnp.where(~left_ok[:, None] & right_ok[:, None], stray, 0.0)
+        kept = jnp.where(has_mass[:, None], f, 0.0)
+        return kept + jnp.concatenate([to_left[1:], zero]) + jnp.concatenate([zero, to_right[:-1]])
+
+    def shift(x, by, a):  # x[i - by] along axis a, zero-filled
+        z = jnp.zeros_like(jax.lax.slice_in_dim(x, 0, 1, axis=a))
+        if by > 0:
+            return jnp.concatenate([z, jax.lax.slice_in_dim(x, 0, x.shape[a] - 1, axis=a)], axis=a)
+        return jnp.concatenate([jax.lax.slice_in_dim(x, 1, x.shape[a], axis=a), z], axis=a)
+
+    d = len(axes)
+    m = has_mass.reshape(axes)
+    reach = [m] * d  # reach[a]: mass within one node along each of the axes after a
+    for a in range(d - 2, -1, -1):
+        r = reach[a + 1]
+        reach[a] = r | shift(r, 1, a + 1) | shift(r, -1, a + 1)
+    f = f.reshape(axes + f.shape[1:])
+    kept = jnp.where(m[..., None], f, 0.0)
+    stray = jnp.where(m[..., None], 0.0, f)
+    for a in range(d):
+        T = reach[a]
+        left_m, right_m = shift(m, 1, a), shift(m, -1, a)
+        left_T, right_T = shift(T, 1, a), shift(T, -1, a)
+        stays = ~left_m & ~right_m & T
+        go_left = left_m | (~right_m & ~stays & left_T)
+        go_right = ~go_left & (right_m | (~stays & right_T))
+        moved = (
+            jnp.where((~go_left & ~go_right)[..., None], stray, 0.0)
+            + shift(jnp.where(go_left[..., None], stray, 0.0), -1, a)
+            + shift(jnp.where(go_right[..., None], stray, 0.0), 1, a)
+        )
+        kept = kept + jnp.where(m[..., None], moved, 0.0)
+        stray = jnp.where(m[..., None], 0.0, moved)
+    return kept.reshape((-1,) + f.shape[d:])
+
+
+def _off_grid(grid: Grid, lo, hi):
+    """Whether a particle's query extent ``[lo, hi]`` (per axis) reaches past the grid along any axis."""
+    return any_axis((lo < grid.x_min[None, :]) | (hi >= grid.x_max[None, :]))
 
 
 def _on_sources(n: int, src, mask):

@@ -58,3 +58,37 @@ def contract(spec: str, a: Array, b: Array) -> Array:
         prod = functools.reduce(operator.add, parts)
     perm = [kept.index(c) for c in out]
     return jnp.transpose(prod, perm) if perm != sorted(perm) else prod
+
+
+def adjugate(A):
+    """The adjugate ``adj A`` (``A^-1 = adj A / det A``) of each ``(..., dim, dim)`` matrix, in closed
+    form for ``dim <= 3`` (the cofactor transpose; 1 in 1D)."""
+    d = A.shape[-1]
+    if d == 1:
+        return jnp.ones_like(A)
+    if d == 2:
+        a, b, c, e = A[..., 0, 0], A[..., 0, 1], A[..., 1, 0], A[..., 1, 1]
+        return jnp.stack([jnp.stack([e, -b], -1), jnp.stack([-c, a], -1)], -2)
+    if d == 3:
+        rows = []
+        for i in range(3):
+            row = []
+            for j in range(3):  # adj[i, j] = cofactor[j, i]
+                r = [k for k in range(3) if k != j]
+                c = [k for k in range(3) if k != i]
+                minor = A[..., r[0], c[0]] * A[..., r[1], c[1]] - A[..., r[0], c[1]] * A[..., r[1], c[0]]
+                row.append(minor if (i + j) % 2 == 0 else -minor)
+            rows.append(jnp.stack(row, -1))
+        return jnp.stack(rows, -2)
+    return det(A)[..., None, None] * jnp.linalg.inv(A)
+
+
+def corner_signs(dim: int):
+    """The ``2^dim`` corners of the reference cube ``[-1, 1]^dim`` as a static ``(2^dim, dim)`` array,
+    corner ``c`` having ``+1`` along axis ``a`` where bit ``dim - 1 - a`` of ``c`` is set (the last
+    axis fastest; in 1D: left, right)."""
+    import numpy as np
+
+    c = np.arange(2**dim)[:, None]
+    bits = (c >> (dim - 1 - np.arange(dim))[None, :]) & 1
+    return (2 * bits - 1).astype(np.float64)

@@ -175,6 +175,10 @@ def _scene_from(name: str, assignments: list[str]):
             raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
         if isinstance(defaults[key], str):
             kwargs[key] = raw
+        elif isinstance(defaults[key], bool):
+            if raw.lower() not in ("true", "false", "1", "0"):
+                raise UsageError(f"{key} must be true or false, got {raw!r}")
+            kwargs[key] = raw.lower() in ("true", "1")
         elif isinstance(defaults[key], int):
             try:
                 kwargs[key] = int(raw)
@@ -380,13 +384,18 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
     diag = jm.diagnostics(scene, sol.state, sol.body)
     params = scene.parameter_values()
     st = sol.state
-    particles = dict(
-        X=_floats(sol.body.X[:, 0]),
-        x=_floats(st.x[:, 0]),
-        v=_floats(st.v[:, 0]),
-        F=_floats(st.F[:, 0, 0]),
-        sigma=_floats(st.sigma[:, 0, 0]),
-    )
+    if scene.dim == 1:  # numbers, as in every 1D release
+        particles = dict(
+            X=_floats(sol.body.X[:, 0]),
+            x=_floats(st.x[:, 0]),
+            v=_floats(st.v[:, 0]),
+            F=_floats(st.F[:, 0, 0]),
+            sigma=_floats(st.sigma[:, 0, 0]),
+        )
+    else:  # lists of dim numbers, dim x dim nested lists; particles by initial position, last axis fastest
+        particles = dict(
+            X=_floats(sol.body.X), x=_floats(st.x), v=_floats(st.v), F=_floats(st.F), sigma=_floats(st.sigma)
+        )
     if as_json:
         out = dict(
             **run,
@@ -394,7 +403,7 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
             params=params,
             particles=particles,
             errors={k: _scalar(v) for k, v in err.items()},
-            diagnostics={k: float(v) for k, v in diag.items()},
+            diagnostics={k: (float(v) if np.ndim(v) == 0 else _floats(v)) for k, v in diag.items()},
             status=int(st.status),
             wall_s=wall_s,
             compile_s=compile_s,
@@ -407,6 +416,32 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
     print("  ".join(f"{k}={v}" for k, v in run.items()) + f"  t={float(st.t):.6g}")
     print("params: " + "  ".join(f"{k}={v}" for k, v in params.items()))
     ex = jm.metrics.exact_fields(scene, sol.body, st.t)
+    if scene.dim > 1:
+        _print_particles_nd(sol, ex)
+    else:
+        _print_particles_1d(sol, particles, ex)
+    print("errors: " + "  ".join(f"{k}={_scalar(v):.4g}" for k, v in err.items() if v is not None))
+    print("diagnostics: " + "  ".join(f"{k}={_fmt(v)}" for k, v in diag.items()))
+    if grad is not None:
+        print(
+            "d(F_rms_rel)/d: "
+            + "  ".join(f"{k}={v:.10g}" for k, v in grad.items())
+            + f"  (grad_s={grad_s:.3f})"
+        )
+    print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
+    return 0
+
+
+def _fmt(v) -> str:
+    import numpy as np
+
+    a = np.asarray(v, dtype=float)
+    return f"{float(a):.6g}" if a.ndim == 0 else "(" + ", ".join(f"{x:.6g}" for x in a) + ")"
+
+
+def _print_particles_1d(sol, particles, ex) -> None:
+    import numpy as np
+
     head = f"{'p':>4} {'X':>12} {'x':>12} {'v':>12} {'F':>12} {'sigma':>13}"
     print(head + (f" {'F_exact':>12}" if ex is not None else ""))
     for p in range(sol.body.n):
@@ -417,16 +452,29 @@ def _report(run: dict, scene, sol, compile_s, wall_s, grad, grad_s, as_json: boo
         if ex is not None:
             row += f" {float(np.asarray(ex['F'])[p, 0, 0]):>12.8f}"
         print(row)
-    print("errors: " + "  ".join(f"{k}={_scalar(v):.4g}" for k, v in err.items() if v is not None))
-    print("diagnostics: " + "  ".join(f"{k}={float(v):.6g}" for k, v in diag.items()))
-    if grad is not None:
-        print(
-            "d(F_rms_rel)/d: "
-            + "  ".join(f"{k}={v:.10g}" for k, v in grad.items())
-            + f"  (grad_s={grad_s:.3f})"
+
+
+def _print_particles_nd(sol, ex) -> None:
+    """One row per particle in 2D/3D: reference and current position, velocity, ``J = det F`` and the
+    mean normal stress ``tr(sigma) / dim`` (``--json`` has every component)."""
+    import numpy as np
+
+    st = sol.state
+    J = np.linalg.det(np.asarray(st.F))
+    p_mean = np.trace(np.asarray(st.sigma), axis1=1, axis2=2) / st.F.shape[1]
+    head = f"{'p':>6} {'X':>28} {'x':>28} {'v':>28} {'J':>12} {'tr(sigma)/dim':>14}"
+    if ex is not None:
+        J_ex = np.linalg.det(np.asarray(ex["F"]))
+        head += f" {'J_exact':>12}"
+    print(head)
+    for p in range(sol.body.n):
+        row = (
+            f"{p:>6} {_fmt(sol.body.X[p]):>28} {_fmt(st.x[p]):>28} {_fmt(st.v[p]):>28} {J[p]:>12.8f} "
+            f"{p_mean[p]:>14.6g}"
         )
-    print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
-    return 0
+        if ex is not None:
+            row += f" {J_ex[p]:>12.8f}"
+        print(row)
 
 
 def _named_values(text: str, what: str) -> dict:

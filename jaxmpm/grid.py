@@ -1,48 +1,105 @@
-"""The background grid: uniform nodes, padded so that the body never leaves it."""
+"""The background grid: uniform nodes along each axis, padded so that the body never leaves it."""
+
+import math
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 
 class Grid(eqx.Module):
-    """A uniform grid of ``n_nodes`` nodes ``x_i = x_min + i h`` along each axis.
+    """A uniform grid of nodes ``x_i = x_min + i h`` along each axis, stored flat.
 
-    ``x_min`` and ``h`` are arrays, so a gradient reaches the grid spacing; the node count is
-    structural (static).
+    A node's flat index is ``sum_a i_a stride_a`` with the last axis fastest (C order). Nodal fields
+    are ``(n_nodes, ...)`` arrays in that order. ``x_min`` and ``h`` are arrays, so a gradient reaches
+    the grid spacing; the node counts are structural (static).
 
     Attributes:
         x_min: position of node 0, shape ``(dim,)``.
-        h: node spacing (a scalar array).
-        n_nodes: number of nodes (static).
+        h: node spacing (a scalar array; the same along every axis).
+        n_nodes: total number of nodes (static).
+        shape: nodes along each axis (static); ``None`` for a 1D grid of ``n_nodes`` nodes.
     """
 
     x_min: Float[Array, " dim"]
     h: Float[Array, ""]
     n_nodes: int = eqx.field(static=True)
+    shape: tuple[int, ...] | None = eqx.field(static=True, default=None)
+
+    def __check_init__(self):
+        if self.shape is not None and (
+            len(self.shape) != self.x_min.shape[0] or math.prod(self.shape) != self.n_nodes
+        ):
+            raise ValueError(
+                f"Grid.shape must give one node count per axis of x_min with product n_nodes; got "
+                f"shape={self.shape}, x_min of {self.x_min.shape[0]} axes, n_nodes={self.n_nodes}"
+            )
+
+    @classmethod
+    def box(cls, x_min: Float[Array, " dim"], h: Float[Array, ""], shape: tuple[int, ...]) -> "Grid":
+        """A grid of ``shape[a]`` nodes along axis ``a`` (``shape`` of length ``dim``)."""
+        shape = tuple(int(s) for s in shape)
+        return cls(x_min=x_min, h=h, n_nodes=math.prod(shape), shape=None if len(shape) == 1 else shape)
 
     @property
     def dim(self) -> int:
         return self.x_min.shape[0]
 
     @property
+    def axes(self) -> tuple[int, ...]:
+        """Nodes along each axis."""
+        return (self.n_nodes,) if self.shape is None else self.shape
+
+    @property
+    def strides(self) -> tuple[int, ...]:
+        """Flat-index stride of each axis (the last axis is contiguous)."""
+        return tuple(math.prod(self.axes[a + 1 :]) for a in range(len(self.axes)))
+
+    @property
     def x_max(self) -> Float[Array, " dim"]:
-        return self.x_min + (self.n_nodes - 1) * self.h
+        if self.shape is None:
+            return self.x_min + (self.n_nodes - 1) * self.h
+        return self.x_min + jnp.asarray([n - 1 for n in self.shape], dtype=self.h.dtype) * self.h
+
+    def index_grid(self) -> np.ndarray:
+        """Integer ``(n_nodes, dim)`` multi-indices of the nodes, in flat order (static)."""
+        mesh = np.meshgrid(*[np.arange(n) for n in self.axes], indexing="ij")
+        return np.stack([m.reshape(-1) for m in mesh], axis=1)
 
     def nodes(self) -> Float[Array, "n_nodes dim"]:
         """Node positions, shape ``(n_nodes, dim)``."""
-        i = jnp.arange(self.n_nodes, dtype=self.h.dtype)
-        return self.x_min[None, :] + i[:, None] * self.h
+        if self.shape is None:
+            i = jnp.arange(self.n_nodes, dtype=self.h.dtype)
+            return self.x_min[None, :] + i[:, None] * self.h
+        i = jnp.asarray(self.index_grid(), dtype=self.h.dtype)
+        return self.x_min[None, :] + i * self.h
 
-    def locate(self, x: Float[Array, "..."]) -> tuple[Int[Array, "..."], Float[Array, "..."]]:
-        """Cell index ``floor((x - x_min) / h)`` of a 1D coordinate and the fraction within it.
+    def locate(self, x: Float[Array, "..."], axis: int = 0) -> tuple[Int[Array, "..."], Float[Array, "..."]]:
+        """Cell index ``floor((x - x_min) / h)`` of a coordinate along ``axis`` and the fraction within it.
 
         The fraction carries the derivative with respect to ``x``, ``x_min`` and ``h``; the index
         is piecewise constant (its derivative is zero, so derivatives are one-sided at nodes).
         """
-        xi = (x - self.x_min[0]) / self.h
+        xi = (x - self.x_min[axis]) / self.h
         base = jnp.floor(xi)
         return base.astype(jnp.int32), xi - base
+
+    def flat_index(self, idx: list[Int[Array, "..."]]) -> Int[Array, "..."]:
+        """The flat index of per-axis node indices (broadcast together); a node off the grid along any
+        axis gets ``n_nodes``, which scatters drop and gathers read as zero (it must not alias a node
+        of the next row)."""
+        if len(idx) == 1:
+            return idx[0]
+        flat, valid = 0, True
+        for i, n, s in zip(idx, self.axes, self.strides):
+            flat = flat + i * s
+            valid = valid & (i >= 0) & (i < n)
+        return jnp.where(valid, flat, self.n_nodes)
+
+    def reshape(self, field: Float[Array, "n_nodes ..."]) -> Float[Array, "..."]:
+        """A flat nodal field as an array of shape ``axes + tail``."""
+        return field.reshape(self.axes + field.shape[1:])
 
     def scatter(self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."]) -> Float[Array, "n_nodes ..."]:
         """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.

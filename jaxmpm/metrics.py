@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ._util import corner_signs
 from .particles import Body, State
 from .scenes import AbstractScene
 
@@ -39,11 +40,49 @@ def exact_fields(scene: AbstractScene, body: Body, t) -> dict[str, Array] | None
     return jax.vmap(scene.exact, in_axes=(0, None))(body.X, t)
 
 
+def implied_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
+    """Each particle's domain corners as its ``x`` and ``F`` imply them, ``x_p + F diag(r0) s_c``
+    (CPDI's parallelogram; in 1D ``x_p -/+ F r0``)."""
+    J = state.F * body.r0[:, None, :]
+    signs = jnp.asarray(corner_signs(state.x.shape[1]), dtype=state.x.dtype)
+    return state.x[:, None, :] + jnp.einsum("nij,cj->nci", J, signs)
+
+
+def domain_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
+    """Each particle's own domain corners: MPQ's tracked corners where the run tracks them (shared
+    by neighbours, stored once), else those ``x`` and ``F`` imply (``implied_corners``)."""
+    if state.corners is not None:
+        return body.particle_corners(state.corners)
+    return implied_corners(state, body)
+
+
+def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Array, " nc"]:
+    """How far apart the particles' copies of each shared corner are: at every corner of the
+    reference lattice, the largest distance of a particle's copy from the copies' mean, over the
+    half-length ``r0``. Zero where neighbouring domains meet (MPQ's tracked corners, always); in 1D
+    the magnitude of ``separation``. A gap and an overlap both count.
+    """
+    return _safe_sqrt(corner_gap_sq(corners, body))
+
+
+def corner_gap_sq(corners, body):
+    ids = body.corner_ids.reshape(-1)
+    nc = body.X_corners.shape[0]
+    c = corners.reshape(-1, corners.shape[-1])
+    count = jax.ops.segment_sum(jnp.ones_like(c[:, 0]), ids, num_segments=nc)
+    mean = jax.ops.segment_sum(c, ids, num_segments=nc) / count[:, None]
+    dev = jnp.sum(jnp.square(c - mean[ids]), axis=1) / jnp.square(jnp.min(body.r0))
+    return jax.ops.segment_max(dev, ids, num_segments=nc)
+
+
 def separation(state: State, body: Body) -> Float[Array, " n_minus_1"]:
     """Domain separation of neighbours, ``(x_{p+1} - x_p - (F_{p+1} + F_p) r0) / (2 r0)`` (SPEC 3).
 
-    Zero when neighbouring domains touch; positive for a gap, negative for an overlap.
+    Zero when neighbouring domains touch; positive for a gap, negative for an overlap. 1D; in 2D
+    and 3D use ``corner_gap``.
     """
+    if state.x.shape[1] != 1:
+        raise ValueError("separation is the 1D diagnostic; in 2D and 3D use corner_gap")
     x = state.x[:, 0]
     F = state.F[:, 0, 0]
     r0 = body.r0[:, 0]
@@ -95,12 +134,16 @@ def errors(
     ``F_*_rel`` are relative errors ``|F - F_exact| / |F_exact|``, also split into particles seeded
     in the boundary cells (first and last cell of the body) and the interior. ``x``, ``v`` and
     ``sigma`` errors are absolute. Errors are ``None`` for a scene with no exact solution, and the
-    interior ones are ``None`` when the body has no interior cell. ``separation_max`` is always set.
+    interior ones are ``None`` when the body has no interior cell. ``separation_max`` is always set:
+    in 1D the largest ``|separation|``, in 2D and 3D the largest ``corner_gap`` of the domains that
+    ``x`` and ``F`` imply.
 
     Every entry is differentiable, with derivative 0 (not NaN) where an error is exactly zero.
     """
     n = body.n
-    if n > 1:
+    if state.x.shape[1] > 1:  # the implied parallelograms' largest corner gap
+        sep = _safe_sqrt(jnp.max(corner_gap_sq(implied_corners(state, body), body)))
+    elif n > 1:
         sep = _safe_sqrt(jnp.max(jnp.square(separation(state, body))))
     else:
         sep = jnp.zeros((), state.x.dtype)
@@ -126,8 +169,15 @@ def errors(
     return out
 
 
+def _momentum(p):
+    total = jnp.sum(p, axis=0)
+    return total[0] if p.shape[1] == 1 else total
+
+
 def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Array]:
     """Total mass, momentum, kinetic, internal and total energy of the real particles.
+
+    ``momentum`` is a number in 1D and a vector of ``dim`` components in 2D and 3D.
 
     Internal energy is ``sum_p V0_p W(F_p)`` with the material's stored energy ``W``.
     """
@@ -136,7 +186,7 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
     internal = jnp.sum(body.V0 * jax.vmap(mat.energy_density)(state.F))
     return dict(
         mass=jnp.sum(body.m),
-        momentum=jnp.sum(body.m[:, None] * state.v, axis=0)[0],
+        momentum=_momentum(body.m[:, None] * state.v),
         energy_kinetic=kinetic,
         energy_internal=internal,
         energy=kinetic + internal,

@@ -1,7 +1,6 @@
 """Particle state and seeding.
 
-Arrays are shaped ``(n, dim)`` (vectors) and ``(n, dim, dim)`` (tensors) so that 2D and 3D follow
-without a rewrite; this release seeds 1D bodies.
+Arrays are shaped ``(n, dim)`` (vectors) and ``(n, dim, dim)`` (tensors) in 1D, 2D and 3D alike.
 """
 
 import equinox as eqx
@@ -18,9 +17,11 @@ class Body(eqx.Module):
         r0: initial half-lengths of the particle domains, ``(n, dim)``.
         m: masses ``rho0 * V0``, ``(n,)``.
         V0: initial volumes ``2 r0`` (unit cross-section), ``(n,)``.
-        X_corners: reference positions of the shared domain corners, ``(n + 1, dim)`` in 1D.
-        corner_ids: the two corners of each particle (left, right), ``(n, 2)``.
-        boundary: whether a particle was seeded in the first or last cell of the body, ``(n,)``.
+        X_corners: reference positions of the shared domain corners, ``(nc, dim)`` (``n + 1`` in 1D).
+        corner_ids: the ``2^dim`` corners of each particle, ``(n, 2^dim)``, in the order of
+            ``_util.corner_signs`` (in 1D: left, right).
+        boundary: whether a particle was seeded in the first or last cell of the body along any
+            axis, ``(n,)``.
     """
 
     X: Float[Array, "n dim"]
@@ -28,15 +29,15 @@ class Body(eqx.Module):
     m: Float[Array, " n"]
     V0: Float[Array, " n"]
     X_corners: Float[Array, "nc dim"]
-    corner_ids: Int[Array, "n 2"]
+    corner_ids: Int[Array, "n corners"]
     boundary: Bool[Array, " n"]
 
     @property
     def n(self) -> int:
         return self.X.shape[0]
 
-    def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n 2 dim"]:
-        """Each particle's two corners, ``corners[corner_ids]``.
+    def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n corners dim"]:
+        """Each particle's ``2^dim`` corners, ``corners[corner_ids]``.
 
         A 1D body is a chain (``seed_bar``: particle ``p`` has corners ``p`` and ``p + 1``), read as
         two shifted slices rather than a gather, which the step does several times a step.
@@ -47,20 +48,36 @@ class Body(eqx.Module):
 
 
 def seed_bar(cells: int, ppc: int, h: Array, rho0: Array) -> Body:
-    """Seed ``ppc`` particles per cell on ``[0, cells h]``.
+    """Seed ``ppc`` particles per cell on ``[0, cells h]`` (``seed_box`` in 1D)."""
+    return seed_box((cells,), ppc, h, rho0)
 
-    Particles sit at the centres of ``ppc`` equal sub-intervals of each cell, so adjacent domains
-    share corners (SPEC section 1).
+
+def seed_box(cells: tuple[int, ...], ppc: int, h: Array, rho0: Array) -> Body:
+    """Seed ``ppc`` particles per cell along each axis (``ppc^dim`` per cell) on ``[0, cells_a h]``.
+
+    Particles sit at the centres of ``ppc`` equal sub-intervals of each cell along every axis, so
+    adjacent domains share corners (SPEC section 1). They are ordered by initial position with the
+    last axis fastest. A particle is in a boundary cell when its cell is the first or last along
+    any axis. Corners form the lattice of ``cells_a ppc + 1`` points per axis, in the same order.
     """
-    n = cells * ppc
-    frac = (np.arange(n) + 0.5) / ppc  # in cells, static
-    X = (jnp.asarray(frac, dtype=h.dtype) * h)[:, None]
-    r0 = jnp.full((n, 1), 0.5 / ppc, dtype=h.dtype) * h
+    d = len(cells)
+    counts = [c * ppc for c in cells]
+    mesh = np.meshgrid(*[np.arange(n) for n in counts], indexing="ij")
+    ip = np.stack([m.reshape(-1) for m in mesh], axis=1)  # (n, dim) particle multi-indices
+    n = ip.shape[0]
+    X = jnp.asarray((ip + 0.5) / ppc, dtype=h.dtype) * h  # in cells, static, times h
+    r0 = jnp.full((n, d), 0.5 / ppc, dtype=h.dtype) * h
     V0 = 2.0 * r0[:, 0]
-    X_corners = (jnp.asarray(np.arange(n + 1) / ppc, dtype=h.dtype) * h)[:, None]
-    ids = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1).astype(np.int32)  # a chain (see Body)
-    cell = np.arange(n) // ppc
-    boundary = (cell == 0) | (cell == cells - 1)
+    for a in range(1, d):
+        V0 = V0 * (2.0 * r0[:, a])
+    cmesh = np.meshgrid(*[np.arange(c + 1) for c in counts], indexing="ij")
+    ic = np.stack([m.reshape(-1) for m in cmesh], axis=1)
+    X_corners = jnp.asarray(ic / ppc, dtype=h.dtype) * h
+    cstride = [int(np.prod([c + 1 for c in counts[a + 1 :]])) for a in range(d)]
+    bits = (np.arange(2**d)[:, None] >> (d - 1 - np.arange(d))[None, :]) & 1  # as corner_signs
+    ids = ((ip[:, None, :] + bits[None, :, :]) * np.asarray(cstride)[None, None, :]).sum(-1).astype(np.int32)
+    cell = ip // ppc
+    boundary = np.any((cell == 0) | (cell == np.asarray(cells)[None, :] - 1), axis=1)
     return Body(
         X=X,
         r0=r0,
@@ -83,7 +100,7 @@ class State(eqx.Module):
         F: deformation gradients ``(n, dim, dim)``.
         sigma: Cauchy stresses ``(n, dim, dim)``.
         C: APIC affine velocity matrices ``(n, dim, dim)``; ``None`` unless the transfer is APIC.
-        corners: MPQ's tracked domain corners ``(n + 1, dim)``; ``None`` unless the interpolator is MPQ.
+        corners: MPQ's tracked domain corners ``(nc, dim)``; ``None`` unless the interpolator is MPQ.
         x_traction: material boundary points that carry a traction, ``(k, dim)``, moved with the
             grid velocity; ``None`` when the scene applies no traction.
         status: failure bitmask (see ``jaxmpm.status``); 0 while the run is healthy.

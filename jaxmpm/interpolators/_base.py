@@ -50,12 +50,12 @@ class AbstractInterpolator(eqx.Module):
         r0: Float[Array, "n dim"],
         x: Float[Array, "n dim"],
         F: Float[Array, "n dim dim"],
-        corners: Float[Array, "n 2 dim"] | None,
+        corners: Float[Array, "n corners dim"] | None,
         gradients: bool = True,
     ) -> Stencil:
         """``phi`` and (if ``gradients``) ``dphi`` of particles with half-lengths ``r0``.
 
-        ``corners`` are the particles' own two corners (MPQ only, ``None`` otherwise).
+        ``corners`` are the particles' own ``2^dim`` corners (MPQ only, ``None`` otherwise).
         """
 
     @abc.abstractmethod
@@ -77,6 +77,7 @@ class AbstractInterpolator(eqx.Module):
         r0: Float[Array, "n dim"],
         x: Float[Array, "n dim"],
         F: Float[Array, "n dim dim"],
-        corners: Float[Array, "n 2 dim"] | None,
-    ) -> tuple[Float[Array, " n"], Float[Array, " n"]]:
-        """Leftmost and rightmost point at which each particle queries the grid (1D)."""
+        corners: Float[Array, "n corners dim"] | None,
+    ) -> tuple[Float[Array, "n dim"], Float[Array, "n dim"]]:
+        """Lowest and highest point along each axis at which each particle queries the grid,
+        ``(lo, hi)``, each ``(n, dim)``."""

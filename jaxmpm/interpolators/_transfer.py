@@ -1,27 +1,105 @@
-"""Shared pieces of the interpolators: the two-node hat stencil of a point, velocity gradients."""
+"""Shared pieces of the interpolators: tensor-product hat stencils, domain gradients, velocity
+gradients.
+
+In ``dim`` dimensions a node's shape function is the product of 1D hats, ``S_i(x) = prod_a
+S_{i_a}(x_a)`` (Sulsky, Chen & Schreyer 1994); GIMP's weights are products of the 1D averages
+(Bardenhagen & Kober 2004, for an axis-aligned domain). Every stencil here is built per axis and
+combined by ``tensor``, so one code path serves 1D, 2D and 3D; in 1D ``tensor`` is the identity.
+"""
+
+import functools
+import math
+import operator
 
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
-from .._util import contract
+from .._util import adjugate, contract, corner_signs, det
 from ..grid import Grid
 from ._base import Stencil
 
 
 def point_stencil(
-    grid: Grid, y: Float[Array, "..."]
+    grid: Grid, y: Float[Array, "..."], axis: int = 0
 ) -> tuple[Int[Array, "... 2"], Float[Array, "... 2"], Float[Array, "... 2"]]:
-    """Nodes, hat values ``S_i(y)`` and hat slopes ``S_i'(y)`` of the two nodes around points ``y``.
+    """Nodes, hat values ``S_i(y)`` and hat slopes ``S_i'(y)`` of the two nodes around coordinates ``y``
+    along ``axis`` (per-axis node indices).
 
     A point exactly on node ``j`` gets nodes ``(j, j + 1)`` with values ``(1, 0)`` and the slopes of
     the cell to its right: the one-sided derivative.
     """
-    base, frac = grid.locate(y)
+    base, frac = grid.locate(y, axis)
     idx = jnp.stack([base, base + 1], axis=-1)
     w = jnp.stack([1.0 - frac, frac], axis=-1)
     inv_h = 1.0 / grid.h
     slope = jnp.stack([-inv_h * jnp.ones_like(frac), inv_h * jnp.ones_like(frac)], axis=-1)
     return idx, w, slope
+
+
+def tensor(grid: Grid, parts, gradients: bool = True):
+    """Combine per-axis stencils ``parts[a] = (idx_a, w_a, dw_a)``, each ``(..., k_a)``, into the
+    tensor-product stencil ``(idx, w, dw)`` of ``prod_a k_a`` nodes (last axis fastest):
+    ``w = prod_a w_a`` and ``dw[..., a] = dw_a prod_{b != a} w_b``. ``dw`` is ``(..., k, dim)``."""
+    if len(parts) == 1:
+        idx, w, dw = parts[0]
+        return idx, w, (dw[..., None] if gradients else None)
+    lead = parts[0][0].shape[:-1]
+    ks = [p[0].shape[-1] for p in parts]
+    k = math.prod(ks)
+
+    def expand(x, a):
+        return x.reshape(lead + tuple(kb if b == a else 1 for b, kb in enumerate(ks)))
+
+    def flat(x):
+        return jnp.broadcast_to(x, lead + tuple(ks)).reshape(lead + (k,))
+
+    idx = flat(grid.flat_index([expand(p[0], a) for a, p in enumerate(parts)]))
+    ws = [expand(p[1], a) for a, p in enumerate(parts)]
+    w = flat(functools.reduce(operator.mul, ws))
+    if not gradients:
+        return idx, w, None
+    dws = []
+    for a, p in enumerate(parts):
+        factors = [expand(p[2], a) if b == a else ws[b] for b in range(len(parts))]
+        dws.append(flat(functools.reduce(operator.mul, factors)))
+    return idx, w, jnp.stack(dws, axis=-1)
+
+
+def points_stencil(grid: Grid, y: Float[Array, "... dim"], gradients: bool = True):
+    """The ``2^dim``-node hat stencil ``(idx, S_i(y), grad S_i(y))`` of points ``y`` (flat indices)."""
+    parts = [point_stencil(grid, y[..., a], a) for a in range(y.shape[-1])]
+    return tensor(grid, parts, gradients)
+
+
+def corner_matrix(c: Float[Array, "n corners dim"]) -> Float[Array, "n dim dim"]:
+    """``D = sum_c x_c s_c^T`` of each particle's ``2^dim`` corners ``x_c`` (signs ``s_c`` of
+    ``corner_signs``): for a parallelogram ``x_c = x_p + J s_c`` it is ``2^dim J``, and in 1D the
+    domain length ``x_c2 - x_c1``. Written as sums and differences (no products by +-1)."""
+    d = c.shape[-1]
+    signs = corner_signs(d)
+    cols = []
+    for j in range(d):
+        plus = functools.reduce(operator.add, [c[:, i] for i in range(2**d) if signs[i, j] > 0])
+        minus = functools.reduce(operator.add, [c[:, i] for i in range(2**d) if signs[i, j] < 0])
+        cols.append(plus - minus)
+    return jnp.stack(cols, axis=-1)
+
+
+def domain_gradient(
+    S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
+) -> Float[Array, "n corners k dim"]:
+    """The domain-averaged gradient of each node's shape function from its values ``S`` at the
+    particle's corners, ``dphi_ip = sum_c S_i(x_c) D^-T s_c`` with ``D`` of ``corner_matrix``.
+
+    For a parallelogram this is the exact average of the gradient of the corner-interpolated shape
+    function over the domain, ``2^-dim sum_c S_i(x_c) J^-T s_c`` (Sadeghirad, Brannon & Burghardt
+    2011, CPDI1; in 2D their eq. 31). In 1D it is ``(S_i(c2) - S_i(c1)) / (c2 - c1)``. The entries
+    are returned per corner; summing over corners is left to the scatter.
+    """
+    d = D.shape[-1]
+    signs = jnp.asarray(corner_signs(d), dtype=D.dtype)
+    g = contract("nji,cj->nci", adjugate(D), signs)  # adj(D)^T s_c, (n, corners, dim)
+    return (S[..., None] * g[:, :, None, :]) / det(D)[:, None, None, None]
 
 
 def velocity_gradient(
@@ -38,3 +116,8 @@ def multiplicative_F_update(
     """``F <- (I + dt L) F``, the update of SPQ, GIMP and CPDI (SPEC section 3)."""
     L = velocity_gradient(grid, stencil, v_new)
     return F + dt * contract("nab,nbc->nac", L, F)
+
+
+def any_axis(mask):
+    """``mask.any(-1)`` as unrolled ORs (a short reduce is a slow library call on XLA's CPU backend)."""
+    return functools.reduce(operator.or_, [mask[..., a] for a in range(mask.shape[-1])])

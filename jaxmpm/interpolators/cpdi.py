@@ -1,34 +1,46 @@
-"""Convected particle domain interpolation, 1D (Sadeghirad, Brannon & Burghardt 2011)."""
+"""Convected particle domain interpolation (Sadeghirad, Brannon & Burghardt 2011), CPDI1."""
+
+import functools
 
 import jax.numpy as jnp
 
+from .._util import contract, corner_signs
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import multiplicative_F_update, point_stencil
+from ._transfer import domain_gradient, multiplicative_F_update, points_stencil
+
+
+def _corners(r0, x, F):
+    """The ``2^dim`` corners ``x_p + F diag(r0) s_c`` of each parallelogram, ``(n, 2^dim, dim)``."""
+    J = F * r0[:, None, :]  # J_ij = F_ij r0_j
+    signs = jnp.asarray(corner_signs(x.shape[1]), dtype=x.dtype)
+    return x[:, None, :] + contract("nij,cj->nci", J, signs)
 
 
 class CPDI(AbstractInterpolator):
-    """CPDI in 1D: corners ``c1,2 = x_p -/+ F r0`` follow from ``F`` (Sadeghirad et al. 2011, eq. 31).
+    """CPDI with parallelogram domains that follow ``F`` (Sadeghirad et al. 2011).
 
-    ``phi_ip = (S_i(c1) + S_i(c2)) / 2``, ``dphi_ip = (S_i(c2) - S_i(c1)) / (c2 - c1)``, and
-    ``F <- F + dt / (2 r0) sum_i (S_i(c2) - S_i(c1)) v_i``, which equals ``(1 + dt grad v) F``
-    because ``c2 - c1 = 2 F r0``.
+    The domain is ``x_p + F diag(r0) [-1, 1]^dim`` with corners ``x_c = x_p + F diag(r0) s_c``;
+    ``phi_ip = 2^-dim sum_c S_i(x_c)`` and ``dphi_ip = sum_c S_i(x_c) D^-T s_c`` with ``D = 2^dim F
+    diag(r0)`` (see ``domain_gradient``); ``F <- (I + dt sum_i v_i dphi_ip^T) F``. In 1D the corners
+    are ``x_p -/+ F r0`` (their eq. 31) and ``dphi_ip = (S_i(c2) - S_i(c1)) / (c2 - c1)``, so the
+    update is ``F + dt / (2 r0) sum_i (S_i(c2) - S_i(c1)) v_i`` (SPEC 3). Neighbouring domains are
+    built from each particle's own ``F``: they can open gaps or overlap (``metrics.corner_gap``).
     """
 
     name = "cpdi"
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del corners
-        half = r0[:, 0] * F[:, 0, 0]
-        c = jnp.stack([x[:, 0] - half, x[:, 0] + half], axis=1)  # (n, 2)
-        idx, s, _ = point_stencil(grid, c)  # (n, 2 corners, 2 nodes)
-        n = x.shape[0]
-        idx = idx.reshape(n, 4)
-        w = 0.5 * s.reshape(n, 4)
+        n, d = x.shape
+        c = _corners(r0, x, F)
+        idx, s, _ = points_stencil(grid, c, gradients=False)  # (n, 2^d corners, 2^d nodes)
+        idx = idx.reshape(n, -1)
+        w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
             return Stencil(idx, w, None, None, None)
-        sign = jnp.asarray([-1.0, -1.0, 1.0, 1.0], dtype=x.dtype)
-        dw = sign[None, :] * s.reshape(n, 4) / (2.0 * half[:, None])
-        return Stencil(idx, w, idx, dw[..., None], None)
+        D = (2.0**d) * (F * r0[:, None, :])
+        dw = domain_gradient(s, D).reshape(n, -1, d)
+        return Stencil(idx, w, idx, dw, None)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body
@@ -36,5 +48,6 @@ class CPDI(AbstractInterpolator):
 
     def extent(self, r0, x, F, corners):
         del corners
-        half = r0[:, 0] * F[:, 0, 0]
-        return x[:, 0] - half, x[:, 0] + half
+        c = _corners(r0, x, F)
+        parts = [c[:, i] for i in range(c.shape[1])]
+        return functools.reduce(jnp.minimum, parts), functools.reduce(jnp.maximum, parts)

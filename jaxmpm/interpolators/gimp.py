@@ -1,23 +1,29 @@
 """Generalized interpolation material point (GIMP), Bardenhagen & Kober 2004."""
 
+import functools
+import operator
+
 import equinox as eqx
 import jax.numpy as jnp
 
 from ..shapes import hat, hat_integral
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import multiplicative_F_update
+from ._transfer import multiplicative_F_update, tensor
 
 
 class GIMP(AbstractInterpolator):
-    """GIMP with a top-hat particle domain ``[x_p - l, x_p + l]`` (Bardenhagen & Kober 2004).
+    """GIMP with an axis-aligned top-hat particle domain ``x_p + [-l, l]^dim`` (Bardenhagen & Kober 2004).
 
-    ``phi_ip`` is the hat of node i averaged over the domain, ``dphi_ip = (S_i(x_p + l) -
-    S_i(x_p - l)) / (2 l)`` its derivative in ``x_p``; ``F <- (1 + dt sum_i dphi_ip v_i) F``.
-    uGIMP keeps ``l = r0``; cpGIMP (contiguous particle GIMP) uses ``l = F r0``.
+    Along each axis ``phi`` is the hat of node i averaged over ``[x_p - l, x_p + l]`` and its slope
+    ``(S_i(x_p + l) - S_i(x_p - l)) / (2 l)``; in 2D and 3D the weight is the product of the axis
+    averages and ``dphi`` along axis ``a`` the axis slope times the other axes' averages (the exact
+    average over a box). ``F <- (I + dt sum_i v_i dphi_ip^T) F``. uGIMP keeps ``l_a = r0_a``;
+    cpGIMP (contiguous particle GIMP) stretches each axis with the diagonal of ``F``, ``l_a = F_aa
+    r0_a`` (the usual axis-aligned approximation of a deformed domain).
 
-    The stencil has a fixed width of ``max_span + 2`` nodes, which covers a domain no longer than
-    ``max_span`` cells. A domain that outgrows it (cpGIMP under strong expansion) is a failure
-    reported by the run's status, never a silent truncation.
+    The stencil has a fixed width of ``max_span + 2`` nodes per axis, which covers a domain no
+    longer than ``max_span`` cells. A domain that outgrows it (cpGIMP under strong expansion) is a
+    failure reported by the run's status, never a silent truncation.
 
     Attributes:
         contiguous: ``False`` for uGIMP, ``True`` for cpGIMP (static).
@@ -35,27 +41,32 @@ class GIMP(AbstractInterpolator):
     def name(self) -> str:  # type: ignore[override]
         return "cpgimp" if self.contiguous else "gimp"
 
-    def half_length(self, r0, F):
-        return r0[:, 0] * F[:, 0, 0] if self.contiguous else r0[:, 0]
+    def half_length(self, r0, F, axis=0):
+        return r0[:, axis] * F[:, axis, axis] if self.contiguous else r0[:, axis]
 
-    def stencil(self, grid, r0, x, F, corners, gradients=True):
-        del corners
-        l = self.half_length(r0, F)
-        a = x[:, 0] - l
-        b = x[:, 0] + l
-        base, _ = grid.locate(a)
-        last, _ = grid.locate(b)
+    def _axis(self, grid, r0, x, F, axis, gradients):
+        l = self.half_length(r0, F, axis)
+        a = x[:, axis] - l
+        b = x[:, axis] + l
+        base, _ = grid.locate(a, axis)
+        last, _ = grid.locate(b, axis)
         k = self.max_span + 2
         idx = base[:, None] + jnp.arange(k, dtype=base.dtype)[None, :]
-        x_i = grid.x_min[0] + idx.astype(x.dtype) * grid.h
+        x_i = grid.x_min[axis] + idx.astype(x.dtype) * grid.h
         xi_a = (a[:, None] - x_i) / grid.h
         xi_b = (b[:, None] - x_i) / grid.h
         w = grid.h * (hat_integral(xi_b) - hat_integral(xi_a)) / (2.0 * l[:, None])
-        ok = last - base <= self.max_span
+        dw = (hat(xi_b) - hat(xi_a)) / (2.0 * l[:, None]) if gradients else None
+        return (idx, w, dw), last - base <= self.max_span
+
+    def stencil(self, grid, r0, x, F, corners, gradients=True):
+        del corners
+        parts, oks = zip(*[self._axis(grid, r0, x, F, a, gradients) for a in range(x.shape[1])])
+        idx, w, dw = tensor(grid, list(parts), gradients)
+        ok = functools.reduce(operator.and_, oks)
         if not gradients:
             return Stencil(idx, w, None, None, ok)
-        dw = (hat(xi_b) - hat(xi_a)) / (2.0 * l[:, None])
-        return Stencil(idx, w, idx, dw[..., None], ok)
+        return Stencil(idx, w, idx, dw, ok)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body
@@ -63,5 +74,5 @@ class GIMP(AbstractInterpolator):
 
     def extent(self, r0, x, F, corners):
         del corners
-        l = self.half_length(r0, F)
-        return x[:, 0] - l, x[:, 0] + l
+        l = jnp.stack([self.half_length(r0, F, a) for a in range(x.shape[1])], axis=1)
+        return x - l, x + l

@@ -1,6 +1,8 @@
 """Scenes: one per file, each with its exact or manufactured solution where one exists."""
 
 from ._base import AbstractScene as AbstractScene
+from .axis_aligned import AxisAligned as AxisAligned
+from .blast import Blast as Blast
 from .gas_expansion import GasExpansion as GasExpansion
 from .gas_slab import GasSlab as GasSlab
 from .manufactured import Manufactured as Manufactured
@@ -9,5 +11,15 @@ from .vacuum_expansion import VacuumExpansion as VacuumExpansion
 from .vibrating_bar import VibratingBar as VibratingBar
 
 SCENES: dict[str, type[AbstractScene]] = {
-    cls.name: cls for cls in (GasExpansion, VibratingBar, Manufactured, VacuumExpansion, Riemann, GasSlab)
+    cls.name: cls
+    for cls in (
+        GasExpansion,
+        VibratingBar,
+        Manufactured,
+        VacuumExpansion,
+        Riemann,
+        GasSlab,
+        AxisAligned,
+        Blast,
+    )
 }

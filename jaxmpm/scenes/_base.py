@@ -12,20 +12,27 @@ from jaxtyping import Array, Float
 from .._checks import check_int, check_positive
 from ..grid import Grid
 from ..materials import AbstractMaterial
-from ..particles import Body, seed_bar
+from ..particles import Body, seed_box
 
 
 class AbstractScene(eqx.Module):
-    """A 1D body on ``[0, cells h]`` with ``ppc`` particles per cell, padded by ``pad`` cells.
+    """A body on ``[0, cells h]^dim`` with ``ppc`` particles per cell and axis, padded by ``pad`` cells.
+
+    ``dim`` is 1 unless the scene declares a static field ``dim`` (1, 2 or 3): a scene with several
+    dimensions takes it as a parameter (``GasExpansion(dim=2)``, ``dim=2`` on the command line).
 
     Continuous parameters are float array fields (differentiable, vmappable); ``cells``, ``ppc`` and
     ``pad`` are static. Optional physics is declared by Python structure, not by flags, so that the
     compiled step holds only what the scene needs:
 
     - ``body_force`` is ``None`` or a method ``(X, t) -> b`` (Lagrangian, per unit mass);
-    - ``traction(t)`` returns ``(left, right)``, each ``None`` or the traction vector ``sigma n``;
-    - ``left`` and ``right`` are ``"free"`` (artificial cells may be added there) or ``"wall"``
-      (node velocity zero);
+    - ``traction(t)`` returns one entry per face, ``(low, high)`` of axis 0, then of axis 1, ...
+      (in 1D ``(left, right)``), each ``None`` or the traction vector per unit reference area, ``P N``
+      (``P`` the first Piola stress, ``N`` the outward reference normal; in 1D ``sigma n``), uniform
+      over the face;
+    - ``left`` and ``right`` are the low and high faces of every axis: ``"free"`` (artificial cells
+      may be added there), ``"wall"`` (node velocity zero) or ``"symmetry"`` (a plane of symmetry,
+      or roller: the normal velocity component is zero);
     - ``exact`` is ``None`` or a method ``(X, t) -> dict(x, v, F, sigma)`` for one particle;
     - ``initial_position`` is ``None`` (the body starts undeformed, ``x = X``, ``F = I``) or a method
       ``X -> x`` for a body that starts deformed: centres, corners and traction points are mapped
@@ -53,6 +60,8 @@ class AbstractScene(eqx.Module):
         check_int("cells", self.cells, 1)
         check_int("ppc", self.ppc, 1)
         check_int("pad", self.pad, 1)
+        if self.dim not in (1, 2, 3):
+            raise ValueError(f"dim must be 1, 2 or 3, got {self.dim!r}")
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)
         self.material()  # a material checks its own parameters (gamma > 1, P0 > 0, E > 0, ...)
@@ -66,9 +75,14 @@ class AbstractScene(eqx.Module):
         """Velocity of the material point at reference position ``X`` at ``t = 0``."""
 
     def traction(self, t: Float[Array, ""]) -> tuple[Array | None, Array | None]:
-        """Traction vectors ``sigma n`` at the left and right material boundary points (or ``None``)."""
+        """Traction vectors per face (``None`` where a face carries none); see the class docstring."""
         del t
-        return None, None
+        return (None,) * (2 * self.dim)
+
+    @property
+    def dim(self) -> int:
+        """Number of space dimensions (a scene with several declares a static field ``dim``)."""
+        return 1
 
     @property
     def length(self) -> Float[Array, ""]:
@@ -76,28 +90,35 @@ class AbstractScene(eqx.Module):
 
     @property
     def wave_speed(self) -> Float[Array, ""]:
-        """The material's sound speed at rest (``F = 1``; the scenes are 1D)."""
-        return self.material().sound_speed(jnp.ones((1, 1), dtype=self.h.dtype), self.rho0)
+        """The material's sound speed at rest (``F = I``)."""
+        return self.material().sound_speed(jnp.eye(self.dim, dtype=self.h.dtype), self.rho0)
 
     def grid(self) -> Grid:
-        x_min = jnp.reshape(-self.pad * self.h, (1,))
-        return Grid(x_min=x_min, h=self.h, n_nodes=self.cells + 2 * self.pad + 1)
+        if self.dim == 1:
+            x_min = jnp.reshape(-self.pad * self.h, (1,))
+            return Grid(x_min=x_min, h=self.h, n_nodes=self.cells + 2 * self.pad + 1)
+        x_min = jnp.broadcast_to(-self.pad * self.h, (self.dim,))
+        return Grid.box(x_min, self.h, (self.cells + 2 * self.pad + 1,) * self.dim)
 
     def body(self) -> Body:
-        return seed_bar(self.cells, self.ppc, self.h, self.rho0)
+        return seed_box((self.cells,) * self.dim, self.ppc, self.h, self.rho0)
 
     @classmethod
     def parameters(cls) -> dict[str, object]:
-        """Every parameter with its default: floats for continuous ones, ints for structural ones."""
+        """Every parameter with its default: floats for continuous ones, ints, strings and bools for
+        structural ones."""
         out = {}
         for f in dataclasses.fields(cls):
-            if isinstance(f.default, (int, float, str)) and not isinstance(f.default, bool):
+            if isinstance(f.default, (int, float, str)):
                 out[f.name] = f.default
         return out
 
     def parameter_values(self) -> dict[str, object]:
-        """This scene's parameters as plain Python values (floats, ints and strings)."""
+        """This scene's parameters as plain Python values (floats, ints, strings and bools).
+
+        ``dim`` is left out where it is 1 (a 1D run reads as it did before scenes had a ``dim``)."""
         return {
             k: (getattr(self, k) if isinstance(v, (int, str)) else float(getattr(self, k)))
             for k, v in self.parameters().items()
+            if not (k == "dim" and getattr(self, k) == 1)
         }

@@ -10,11 +10,14 @@ from ._base import AbstractScene
 
 
 class GasExpansion(AbstractScene):
-    """Gas on ``[0, L]`` expanding as ``u = beta t X`` (Bonifasi-Lista, Brannon & Wiskin 2013).
+    """Gas on ``[0, L]^dim`` expanding as ``u = beta t X`` (Bonifasi-Lista, Brannon & Wiskin 2013).
 
-    Exact solution: ``x = (1 + beta t) X``, ``F = 1 + beta t``, ``v = beta X``, ``a = 0``,
-    ``P = P0 F^-gamma - p_atm`` uniform, no body force. Both ends are free and carry the traction
-    the solution implies, ``t = sigma(t) n``, so every nodal acceleration vanishes at ``t = 0``.
+    Exact solution: ``x = (1 + beta t) X``, ``F = (1 + beta t) I``, ``v = beta X``, ``a = 0``,
+    ``P = P0 J^-gamma - p_atm`` uniform with ``J = (1 + beta t)^dim``, no body force. Every face is
+    free and carries the traction the solution implies, ``P N`` per unit reference area with the
+    first Piola stress ``P = J sigma F^-T = (1 + beta t)^(dim - 1) sigma`` (in 1D ``sigma n``), so
+    every nodal acceleration vanishes at ``t = 0``. Along each axis the first step is the 1D one:
+    boundary cells ``5/8``, interior and artificial cells exact.
 
     The defaults (SI units) make the talk's times meaningful: with ``beta = 200 /s``, ``F`` grows to
     1.02 by ``t = 0.0001`` and to 1.25 by ``t = 0.00125``. The gas is at 2 bar against 1 bar of
@@ -32,10 +35,11 @@ class GasExpansion(AbstractScene):
         cells: cells the body fills initially (static).
         ppc: particles per cell (static).
         pad: empty cells on each side of the body (static).
+        dim: 1, 2 or 3; the body is a square or cube of ``cells^dim`` cells (static).
     """
 
     name = "gas-expansion"
-    description = "1D adiabatic gas expansion, u = beta t X (the talk's manufactured solution)"
+    description = "adiabatic gas expansion, u = beta t X (the talk's manufactured solution), dim 1-3"
 
     beta: jnp.ndarray = eqx.field(converter=as_float, default=200.0)
     h: jnp.ndarray = eqx.field(converter=as_float, default=0.125)
@@ -46,6 +50,7 @@ class GasExpansion(AbstractScene):
     cells: int = eqx.field(static=True, default=8)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=10)
+    dim: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
         check_finite("beta", self.beta)
@@ -58,10 +63,19 @@ class GasExpansion(AbstractScene):
 
     def exact(self, X, t):
         F = 1.0 + self.beta * t
-        F_mat = jnp.reshape(F, (1, 1)) * jnp.ones((1, 1), dtype=X.dtype)
+        if self.dim == 1:
+            F_mat = jnp.reshape(F, (1, 1)) * jnp.ones((1, 1), dtype=X.dtype)
+        else:
+            F_mat = F * jnp.eye(self.dim, dtype=X.dtype)
         return dict(x=F * X, v=self.beta * X, F=F_mat, sigma=self.material().stress(F_mat))
 
     def traction(self, t):
-        F = jnp.reshape(1.0 + self.beta * t, (1, 1))
-        sigma = self.material().stress(F)[0]  # (dim,)
-        return -sigma, sigma
+        f = 1.0 + self.beta * t
+        if self.dim == 1:
+            sigma = self.material().stress(jnp.reshape(f, (1, 1)))[0]  # (dim,)
+            return -sigma, sigma
+        P = f ** (self.dim - 1) * self.material().stress(f * jnp.eye(self.dim, dtype=self.h.dtype))
+        out = []
+        for a in range(self.dim):  # P N with N = -e_a, +e_a
+            out += [-P[:, a], P[:, a]]
+        return tuple(out)

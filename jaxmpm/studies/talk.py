@@ -188,7 +188,7 @@ def main(out: str, small: bool = False) -> dict:
     params = {
         k: (getattr(scene, k) if isinstance(v, int) else float(getattr(scene, k)))
         for k, v in scene.parameters().items()
-        if k != "beta"
+        if k not in ("beta", "dim")
     }
     header = (
         f"# The talk's study: 1D gas expansion u = beta t X\n\n"
