@@ -4,6 +4,9 @@ Optional physics enters by Python structure while tracing (``if scene.body_force
 so the compiled step holds only what the scene and the run declared.
 """
 
+import functools
+import operator
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -341,10 +344,12 @@ def fold_massless(
     the boundary position, and the total force is unchanged. Force with no massive neighbour
     within one node is dropped (no interpolator here reaches that far from every mass).
 
-    On a grid of ``axes`` nodes per axis (2D, 3D) the fold goes along one axis at a time, axis 0
-    first: force moves to a neighbour with mass (the lower one first); failing that, a node that can
-    reach mass along the later axes keeps it for them; failing that, it moves to a neighbour that can
-    (so force on a node diagonal to the body's corner reaches the corner node in two moves). Force
+    On a grid of ``axes`` nodes per axis (2D, 3D), force on a node with massive neighbours along
+    several axes is shared equally among those axes (the lower neighbour first along each), so the
+    axes are treated alike. Force on a node whose massive neighbours are only diagonal goes along one
+    axis at a time, axis 0 first: a node that can reach mass along the later axes keeps it for them;
+    failing that, it moves to a neighbour that can (so force on a node diagonal to the body's corner
+    reaches the corner node in two moves). Force
     with no mass within one node along every axis is dropped.
     """
     zero = jnp.zeros_like(f[:1])
@@ -372,6 +377,17 @@ def fold_massless(
     f = f.reshape(axes + f.shape[1:])
     kept = jnp.where(m[..., None], f, 0.0)
     stray = jnp.where(m[..., None], 0.0, f)
+    # Force on a node with massive neighbours along several axes is shared equally among those axes,
+    # so the fold treats the axes alike (a square body stays symmetric about its diagonal).
+    near = [shift(m, 1, a) | shift(m, -1, a) for a in range(d)]
+    count = functools.reduce(operator.add, [jnp.where(n_a, 1.0, 0.0) for n_a in near])
+    for a in range(d):
+        share = jnp.where(near[a], 1.0, 0.0) / jnp.maximum(count, 1.0)
+        part = stray * share[..., None]
+        left_m = shift(m, 1, a)
+        kept = kept + shift(jnp.where(left_m[..., None], part, 0.0), -1, a)
+        kept = kept + shift(jnp.where((~left_m & shift(m, -1, a))[..., None], part, 0.0), 1, a)
+    stray = jnp.where((count > 0)[..., None], 0.0, stray)
     for a in range(d):
         T = reach[a]
         left_m, right_m = shift(m, 1, a), shift(m, -1, a)

@@ -18,6 +18,7 @@ STUDIES = {
     "convergence": "convergence",
     "work-precision": "work_precision",
     "stability": "stability",
+    "multid": "multid",
 }
 
 
@@ -152,7 +153,8 @@ def _parser() -> argparse.ArgumentParser:
         "name",
         choices=list(STUDIES),
         help="talk: the 2013 MPM workshop comparison; convergence: observed orders on the verification "
-        "ladder; work-precision: error against run time; stability: the stiff and extreme map",
+        "ladder; work-precision: error against run time; stability: the stiff and extreme map; multid: 2D "
+        "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run)",
     )
     st.add_argument("--out", required=True, help="output directory")
     st.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")

@@ -9,9 +9,8 @@ Legacy VTK, binary (big-endian, as the format requires), which ParaView, VisIt a
   particle-to-grid transfer the step itself makes (the same stencil and transfer), without the
   artificial particles: what the real body puts on the grid.
 
-Positions have ``dim`` components and are padded to 3 with zeros (a 1D run lies along x). The grid
-file is written for the grid as it is today, one axis of ``n_nodes`` nodes; the particle file
-already takes any ``dim``.
+Positions have ``dim`` components and are padded to 3 with zeros (a 1D run lies along x, a 2D run
+in the x-y plane). The grid file has the grid's nodes along each axis, in VTK's order (x fastest).
 """
 
 from __future__ import annotations
@@ -91,10 +90,18 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
     """Write node fields of ``grid`` (a ``jm.Grid``) as ``STRUCTURED_POINTS``; ``fields`` as for
     ``write_particles``, one value per node."""
     dim = grid.dim
-    shape = [grid.n_nodes] + [1] * (3 - dim)
+    shape = list(grid.axes) + [1] * (3 - dim)
     origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
     h = float(grid.h)
     spacing = [h] * dim + [1.0] * (3 - dim)
+    if dim > 1:  # VTK runs x fastest; jaxmpm's flat order runs the last axis fastest
+        fields = {
+            k: np.asarray(v)
+            .reshape(tuple(grid.axes) + np.shape(v)[1:])
+            .transpose(tuple(reversed(range(dim))) + tuple(range(dim, np.ndim(v) + dim - 1)))
+            .reshape((grid.n_nodes,) + np.shape(v)[1:])
+            for k, v in fields.items()
+        }
     header = (
         "# vtk DataFile Version 3.0\njaxmpm grid\nBINARY\nDATASET STRUCTURED_POINTS\n"
         f"DIMENSIONS {' '.join(str(s) for s in shape)}\n"

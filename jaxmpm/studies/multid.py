@@ -1,0 +1,328 @@
+"""2D and 3D (issue 8): the talk's first step along every axis, the axis-aligned manufactured solution's
+orders, the blast's domain gaps (MPQ against CPDI), and a 100,000-particle 2D run.
+
+``jaxmpm study multid --out DIR`` writes ``multid.md``, ``multid.json`` and three figures.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+
+import numpy as np
+
+import jaxmpm as jm
+
+BETA, DT = 200.0, 1e-5
+NAMES = ("spq", "gimp", "cpgimp", "cpdi", "mpq")
+
+
+def first_steps(dims=(2, 3)) -> list[dict]:
+    """The first step of the gas expansion, ``(F_aa - 1) / (beta dt)`` over all particles and axes:
+    5/8 in boundary cells and 1 inside without artificial cells, 1 everywhere with them."""
+    rows = []
+    for dim in dims:
+        for name in NAMES:
+            for ac in (0, 1):
+                scene = jm.GasExpansion(cells=3, ppc=2, beta=BETA, dim=dim, pad=3)
+                sol = jm.simulate(scene, jm.INTERPOLATORS[name](), dt=DT, steps=1, artificial_cells=ac)
+                F = np.asarray(sol.state.F)
+                g = (np.diagonal(F, axis1=1, axis2=2) - 1.0) / (BETA * DT)
+                off = np.abs(F * (1 - np.eye(dim))).max() / (BETA * DT)
+                b = np.asarray(sol.body.boundary)
+                rows.append(
+                    dict(
+                        dim=dim,
+                        interpolator=name,
+                        artificial_cells=ac,
+                        boundary_min=float(g[b].min()),
+                        boundary_max=float(g[b].max()),
+                        interior_min=float(g[~b].min()),
+                        interior_max=float(g[~b].max()),
+                        off_diagonal_max=float(off),
+                    )
+                )
+    return rows
+
+
+def axis_aligned(dim: int, cells_list, names=("spq", "gimp", "cpdi", "mpq")) -> list[dict]:
+    """RMS position error of the axis-aligned solution at a quarter period, ``dt = 0.2 h / c``."""
+    rows = []
+    for name in names:
+        errs = []
+        for cells in cells_list:
+            scene = jm.AxisAligned(cells=cells, h=1.0 / cells, dim=dim)
+            c = float(scene.wave_speed)
+            t_end = 0.5 / c
+            steps = int(np.ceil(t_end / (0.2 / cells / c)))
+            t0 = time.perf_counter()
+            sol = jm.simulate(scene, jm.INTERPOLATORS[name](), dt=t_end / steps, steps=steps, throw=False)
+            wall = time.perf_counter() - t0
+            e = jm.errors(scene, sol.state, sol.body)
+            fail = sol.failure()
+            errs.append(float(e["x_rms_abs"]) if fail is None else float("nan"))
+            rows.append(
+                dict(
+                    dim=dim,
+                    interpolator=name,
+                    cells=cells,
+                    particles=sol.body.n,
+                    steps=steps,
+                    x_rms_abs=errs[-1],
+                    F_rms_rel=float(e["F_rms_rel"]) if fail is None else float("nan"),
+                    wall_s=wall,
+                    failure=None if fail is None else fail["quantities"][0],
+                )
+            )
+        h = 1.0 / np.asarray(cells_list, dtype=float)
+        e = np.asarray(errs)
+        ok = np.isfinite(e)
+        order = float(np.polyfit(np.log(1 / h[ok]), np.log(e[ok]), 1)[0]) if ok.sum() >= 2 else float("nan")
+        finest = float(np.log(e[-2] / e[-1]) / np.log(h[-2] / h[-1])) if ok[-2:].all() else float("nan")
+        for r in rows:
+            if r["interpolator"] == name and r["dim"] == dim:
+                r["order_fit"], r["order_finest"] = -order if np.isfinite(order) else order, finest
+    return rows
+
+
+def blast(steps: int, every: int, cells: int = 8) -> dict:
+    """The quarter blast with CPDI and MPQ (MUSL, FLIP): corner gaps against time, diagnostics."""
+    out = {}
+    for name in ("cpdi", "mpq"):
+        scene = jm.Blast(cells=cells, h=0.5 / cells, pad=3 * cells)
+        dt = 0.25 * float(scene.h) / float(scene.wave_speed)
+        fields = ("x", "F", "corners") if name == "mpq" else ("x", "F")
+        sol = jm.simulate(
+            scene,
+            jm.INTERPOLATORS[name](),
+            dt=dt,
+            steps=steps,
+            ordering="musl",
+            saveat=jm.SaveAt(every=every, fields=fields),
+            throw=False,
+        )
+        body = sol.body
+        gaps, implied = [], []
+        for k in range(len(sol.ts)):
+            st = jm.State(
+                t=sol.ts[k],
+                step=sol.state.step,
+                x=sol.history["x"][k],
+                v=sol.state.v,
+                F=sol.history["F"][k],
+                sigma=sol.state.sigma,
+                C=None,
+                corners=sol.history["corners"][k] if name == "mpq" else None,
+                x_traction=None,
+                status=sol.state.status,
+                fail_step=sol.state.fail_step,
+                fail_particle=sol.state.fail_particle,
+            )
+            gaps.append(float(np.max(jm.corner_gap(jm.domain_corners(st, body), body))))
+            implied.append(float(np.max(jm.corner_gap(jm.metrics.implied_corners(st, body), body))))
+        d = jm.diagnostics(scene, sol.state, body)
+        fail = sol.failure()
+        out[name] = dict(
+            t=[float(t) for t in sol.ts],
+            gap_own=gaps,
+            gap_implied=implied,
+            corners=np.asarray(jm.domain_corners(sol.state, body)).tolist(),
+            steps_taken=int(sol.state.step),
+            failure=fail,
+            mass=float(d["mass"]),
+            energy=float(d["energy"]),
+            energy_kinetic=float(d["energy_kinetic"]),
+            dt=dt,
+            params=scene.parameter_values(),
+        )
+    return out
+
+
+def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
+    """A 2D gas expansion of ``cells^2 * 4`` particles (99,856 at 158 cells): compile and run time."""
+    rows = []
+    for name in ("spq", "cpdi", "mpq"):
+        scene = jm.GasExpansion(dim=2, cells=cells, h=1.0 / cells, pad=4)
+        sol, compile_s, run_s = jm.simulate_timed(
+            scene, jm.INTERPOLATORS[name](), dt=1e-6, steps=steps, artificial_cells=1
+        )
+        rows.append(
+            dict(
+                interpolator=name,
+                particles=sol.body.n,
+                steps=steps,
+                compile_s=compile_s,
+                run_s=run_s,
+                mparticle_steps_per_s=sol.body.n * steps / run_s / 1e6,
+                F_max_rel=float(jm.errors(scene, sol.state, sol.body)["F_max_rel"]),
+            )
+        )
+    return rows
+
+
+def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    paths = []
+    b = result["blast"]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharex=True, sharey=True)
+    order = [0, 1, 3, 2]  # corners (-,-), (-,+), (+,+), (+,-): around the quadrilateral
+    for ax, name in zip(axes, ("cpdi", "mpq")):
+        c = np.asarray(b[name]["corners"])[:, order, :]
+        ax.add_collection(
+            PolyCollection(c, facecolors="tab:blue", edgecolors="k", linewidths=0.3, alpha=0.35)
+        )
+        ax.autoscale()
+        ax.set_aspect("equal")
+        t = b[name]["t"][-1]
+        ax.set_title(
+            f"{name.upper()} at t = {t * 1e3:.2f} ms: max corner gap {b[name]['gap_own'][-1]:.3g} r0"
+        )
+        ax.set_xlabel("x (m)")
+    axes[0].set_ylabel("y (m)")
+    fig.suptitle("Blast (quarter, symmetry planes at x = 0 and y = 0): particle domains")
+    fig.tight_layout()
+    p = outdir / "blast_domains.png"
+    fig.savefig(p, dpi=130)
+    plt.close(fig)
+    paths.append(p)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for name, style in (("cpdi", "-"), ("mpq", "--")):
+        t = np.asarray(b[name]["t"]) * 1e3
+        ax.plot(t, b[name]["gap_own"], style, label=f"{name.upper()}: its own domains")
+    ax.plot(
+        np.asarray(b["mpq"]["t"]) * 1e3, b["mpq"]["gap_implied"], ":", label="MPQ: parallelograms from x, F"
+    )
+    ax.set_xlabel("t (ms)")
+    ax.set_ylabel("largest corner gap / r0")
+    ax.set_yscale("symlog", linthresh=1e-3)
+    ax.legend(fontsize=8)
+    ax.set_title("Shared corners: MPQ's coincide (0), CPDI's separate")
+    fig.tight_layout()
+    p = outdir / "blast_gap.png"
+    fig.savefig(p, dpi=130)
+    plt.close(fig)
+    paths.append(p)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for dim_rows in (result["axis_aligned_2d"],):
+        for name in sorted({r["interpolator"] for r in dim_rows}):
+            rr = [r for r in dim_rows if r["interpolator"] == name]
+            ax.loglog(
+                [1 / r["cells"] for r in rr],
+                [r["x_rms_abs"] for r in rr],
+                "o-",
+                label=f"{name} (order {rr[0]['order_fit']:.2f})",
+            )
+    ax.set_xlabel("h")
+    ax.set_ylabel("RMS position error at t = L / (2c)")
+    ax.set_title("Axis-aligned manufactured solution, 2D")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    p = outdir / "axis_aligned_convergence.png"
+    fig.savefig(p, dpi=130)
+    plt.close(fig)
+    paths.append(p)
+    return paths
+
+
+def _markdown(result: dict) -> str:
+    lines = ["# 2D and 3D: jaxmpm study multid", ""]
+    lines += [
+        "## Gas expansion, first step, (F_aa - 1) / (beta dt) over every particle and axis",
+        "",
+        "| dim | interpolator | AC | boundary cells | interior | off-diagonal |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in result["first_step"]:
+        lines.append(
+            f"| {r['dim']} | {r['interpolator']} | {r['artificial_cells']} | {r['boundary_min']:.15g} .. "
+            f"{r['boundary_max']:.15g} | {r['interior_min']:.15g} .. {r['interior_max']:.15g} | "
+            f"{r['off_diagonal_max']:.1e} |"
+        )
+    for key, title in (("axis_aligned_2d", "2D"), ("axis_aligned_3d", "3D")):
+        rows = result.get(key)
+        if not rows:
+            continue
+        lines += [
+            "",
+            f"## Axis-aligned manufactured solution (Wallstedt & Guilkey 2008), {title}, t = L / (2c)",
+            "",
+            "| interpolator | cells | particles | steps | x RMS error | F RMS rel. error | order (fit) "
+            "| order (finest pair) | wall s |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in rows:
+            lines.append(
+                f"| {r['interpolator']} | {r['cells']} | {r['particles']} | {r['steps']} | "
+                f"{r['x_rms_abs']:.3e} | {r['F_rms_rel']:.3e} | {r['order_fit']:.2f} | "
+                f"{r['order_finest']:.2f} | {r['wall_s']:.1f} |"
+            )
+    b = result["blast"]
+    lines += [
+        "",
+        "## Blast (quarter charge, symmetry planes, MUSL + FLIP)",
+        "",
+        f"Parameters: {b['mpq']['params']}, dt = {b['mpq']['dt']:.4g} s.",
+        "",
+        "| interpolator | steps taken | failure | max corner gap / r0 (own domains) "
+        "| (parallelograms from x, F) | total energy (J/m) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in ("cpdi", "mpq"):
+        r = b[name]
+        fail = (
+            "none"
+            if r["failure"] is None
+            else f"step {r['failure']['step']}: {r['failure']['quantities'][0]}"
+        )
+        lines.append(
+            f"| {name} | {r['steps_taken']} | {fail} | {r['gap_own'][-1]:.3g} | {r['gap_implied'][-1]:.3g} | "
+            f"{r['energy']:.4g} |"
+        )
+    lines += [
+        "",
+        "## 2D run of about 100,000 particles (gas expansion, artificial cells)",
+        "",
+        "| interpolator | particles | steps | compile s | run s | M particle-steps/s | F max rel. error |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in result["large_2d"]:
+        lines.append(
+            f"| {r['interpolator']} | {r['particles']} | {r['steps']} | {r['compile_s']:.2f} | "
+            f"{r['run_s']:.2f} | {r['mparticle_steps_per_s']:.2f} | {r['F_max_rel']:.2e} |"
+        )
+    lines += ["", f"Machine: {result['machine']}; total {result['wall_s']:.0f} s.", ""]
+    return "\n".join(lines)
+
+
+def main(out: str, small: bool = False) -> dict:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    t0 = time.perf_counter()
+    outdir = pathlib.Path(out)
+    outdir.mkdir(parents=True, exist_ok=True)
+    from ..bench import machine
+
+    result = dict(
+        first_step=first_steps((2,) if small else (2, 3)),
+        axis_aligned_2d=axis_aligned(2, (8, 16) if small else (8, 16, 32, 64)),
+        axis_aligned_3d=[] if small else axis_aligned(3, (4, 8, 16), names=("gimp", "cpdi", "mpq")),
+        blast=blast(60 if small else 300, 10, cells=4 if small else 8),
+        large_2d=large_2d(cells=16 if small else 158, steps=5 if small else 20),
+        machine=machine(),
+    )
+    result["wall_s"] = time.perf_counter() - t0
+    (outdir / "multid.json").write_text(json.dumps(result, indent=1, default=str))
+    (outdir / "multid.md").write_text(_markdown(result))
+    paths = _figures(result, outdir)
+    print(_markdown(result))
+    print("wrote " + ", ".join(str(p) for p in [outdir / "multid.md", outdir / "multid.json", *paths]))
+    return result
