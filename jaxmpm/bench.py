@@ -50,20 +50,24 @@ def available(code: str) -> bool:
     return importlib.util.find_spec(code) is not None
 
 
-def _scene(n: int):
+def _scene(n: int, dim: int = 1):
     import jaxmpm as jm
 
+    if dim == 2:  # a square of k x k cells, 2 x 2 particles each, on a unit square
+        k = round(math.sqrt(n // 4))
+        return jm.GasExpansion(cells=k, h=1.0 / k, pad=4, dim=2, **PROBLEM), 0.1 / (k * 600.0)
     L = layout(n)
     return jm.GasExpansion(cells=L["cells"], h=L["h"], pad=L["pad"], **PROBLEM), L["dt"]
 
 
-def jaxmpm_simulate(name: str, n: int, steps: int):
-    """``(compile_s, run_s, F_mean, status)`` of one ``jm.simulate`` with interpolator ``name``."""
+def jaxmpm_simulate(name: str, n: int, steps: int, dim: int = 1):
+    """``(compile_s, run_s, F_mean, status)`` of one ``jm.simulate`` with interpolator ``name`` (in 2D:
+    the gas expansion on a square, a CFL number of about 0.1)."""
     import jax.numpy as jnp
 
     import jaxmpm as jm
 
-    scene, dt = _scene(n)
+    scene, dt = _scene(n, dim)
     sol, compile_s, run_s = jm.simulate_timed(
         scene, jm.INTERPOLATORS[name](), dt=dt, steps=steps, throw=False
     )
@@ -202,7 +206,7 @@ def bandwidth_bound(bytes_per_s: float, dtype: str) -> float:
     return bytes_per_s / (PASSES * 3 * item) / 1e6
 
 
-def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool) -> dict:
+def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, sizes_2d=()) -> dict:
     import jax
 
     jax.config.update("jax_enable_x64", dtype == "f64")
@@ -246,6 +250,16 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool) ->
             for name in interpolators:
                 add(f"jaxmpm {name}, one step a call", n, n_steps, jaxmpm_step(name, n, n_steps))
             jax.clear_caches()
+    if "jaxmpm" in codes:  # 2D: jaxmpm alone (the reference codes are 1D)
+        for n in sizes_2d:
+            for name in interpolators:
+                add(
+                    f"jaxmpm {name} 2D",
+                    n,
+                    steps_for(n, steps),
+                    jaxmpm_simulate(name, n, steps_for(n, steps), dim=2),
+                )
+            jax.clear_caches()
     out = dict(
         rows=rows, numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F) for n, F in folded.items()]
     )
@@ -275,6 +289,7 @@ def run(
     codes=CODES,
     interpolators=INTERPOLATOR_NAMES,
     extras: bool = True,
+    sizes_2d=(),
 ) -> dict:
     """Run the benchmark, one subprocess per float type; returns rows, extras and the machine."""
     result = dict(
@@ -299,6 +314,7 @@ def run(
             codes=list(codes),
             interpolators=list(interpolators),
             extras=extras,
+            sizes_2d=list(sizes_2d),
         )
         cmd = [sys.executable, "-m", "jaxmpm.bench", "--worker", json.dumps(spec)]
         proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
@@ -472,6 +488,7 @@ if __name__ == "__main__":  # the per-dtype worker process of ``run``
                     spec["codes"],
                     spec["interpolators"],
                     spec["extras"],
+                    spec.get("sizes_2d", ()),
                 )
             )
         )

@@ -135,6 +135,11 @@ def _parser() -> argparse.ArgumentParser:
         "--sizes", default="1000,8000,64000,256000,1000000", help="particle counts, comma-separated"
     )
     bn.add_argument("--steps", type=int, default=100, help="steps per run (a quarter from 500k particles up)")
+    bn.add_argument(
+        "--sizes-2d",
+        default="16384,102400",
+        help="particle counts of jaxmpm's 2D runs (4 k^2: k^2 cells of 2 x 2), comma-separated; '' for none",
+    )
     bn.add_argument("--dtypes", default="f32,f64", help="f32, f64 or both (each in its own process)")
     bn.add_argument(
         "--codes",
@@ -700,6 +705,15 @@ def _cmd_bench(args) -> int:
         raise UsageError(f"--sizes must be even particle counts >= 2 (two per cell), got {args.sizes!r}")
     if args.steps < 2:
         raise UsageError(f"--steps must be an integer >= 2, got {args.steps}")
+    try:
+        sizes_2d = [int(t) for t in args.sizes_2d.split(",") if t.strip()]
+    except ValueError:
+        raise UsageError(f"--sizes-2d must be comma-separated integers, got {args.sizes_2d!r}") from None
+    if any(n < 4 or n % 4 or round(math.sqrt(n // 4)) ** 2 != n // 4 for n in sizes_2d):
+        raise UsageError(
+            f"--sizes-2d must be particle counts 4 k^2 (a square of k x k cells, 2 x 2 particles each), "
+            f"got {args.sizes_2d!r}"
+        )
     dtypes = names(args.dtypes, "--dtypes", ("f32", "f64"))
     codes = names(args.codes, "--codes", BENCH_CODES)
     interps = names(args.interpolators, "--interpolators", ("spq", "gimp", "cpgimp", "cpdi", "mpq"))
@@ -709,7 +723,9 @@ def _cmd_bench(args) -> int:
             f"jaxmpm bench: {', '.join(missing)} not installed, skipped (pip install jaxmpm[bench])",
             file=sys.stderr,
         )
-    result = bench.run(sizes, args.steps, dtypes, codes, interps, extras=not args.no_extras)
+    result = bench.run(
+        sizes, args.steps, dtypes, codes, interps, extras=not args.no_extras, sizes_2d=sizes_2d
+    )
     if args.out:
         paths = bench.write(result, args.out)
         if not args.json:

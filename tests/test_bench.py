@@ -116,6 +116,8 @@ def test_bench_command_json_and_files(tmp_path, capsys):
             "numpy,jax,jaxmpm",
             "--interpolators",
             "spq,mpq",
+            "--sizes-2d",
+            "16,64",
             "--no-extras",
             "--json",
             "--out",
@@ -133,9 +135,12 @@ def test_bench_command_json_and_files(tmp_path, capsys):
         "jaxmpm mpq",
         "jaxmpm spq, one step a call",
         "jaxmpm mpq, one step a call",
+        "jaxmpm spq 2D",
+        "jaxmpm mpq 2D",
     }
     for r in out["rows"]:
-        assert r["particles"] in (200, 400) and r["steps"] == 5 and r["dtype"] == "f64"
+        sizes = (16, 64) if r["code"].endswith("2D") else (200, 400)
+        assert r["particles"] in sizes and r["steps"] == 5 and r["dtype"] == "f64"
         assert r["Mpsps"] > 0 and r["run_s"] > 0 and r["status"] == 0
     assert out["agreement"]["f64"]["reference codes"] < 1e-13
     assert out["agreement"]["f64"]["jaxmpm spq vs NumPy with the fold"] < 1e-13
@@ -152,6 +157,8 @@ def test_bench_command_json_and_files(tmp_path, capsys):
         (["--sizes", "1001"], "--sizes"),
         (["--steps", "1"], "--steps"),
         (["--interpolators", "sph"], "--interpolators"),
+        (["--sizes-2d", "50"], "--sizes-2d"),
+        (["--sizes-2d", "4x"], "--sizes-2d"),
     ],
 )
 def test_bench_command_rejects_bad_input(argv, named, capsys):
