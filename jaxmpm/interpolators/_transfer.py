@@ -85,21 +85,24 @@ def corner_matrix(c: Float[Array, "n corners dim"]) -> Float[Array, "n dim dim"]
     return jnp.stack(cols, axis=-1)
 
 
-def domain_gradient(
-    S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
-) -> Float[Array, "n corners k dim"]:
+def domain_gradient(S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]) -> Float[Array, "n ck dim"]:
     """The domain-averaged gradient of each node's shape function from its values ``S`` at the
     particle's corners, ``dphi_ip = sum_c S_i(x_c) D^-T s_c`` with ``D`` of ``corner_matrix``.
 
     For a parallelogram this is the exact average of the gradient of the corner-interpolated shape
     function over the domain, ``2^-dim sum_c S_i(x_c) J^-T s_c`` (Sadeghirad, Brannon & Burghardt
     2011, CPDI1; in 2D their eq. 31). In 1D it is ``(S_i(c2) - S_i(c1)) / (c2 - c1)``. The entries
-    are returned per corner; summing over corners is left to the scatter.
+    are returned flat, ``(n, corners * k, dim)`` (corner-major); summing over corners is left to the
+    scatter.
     """
     d = D.shape[-1]
     signs = jnp.asarray(corner_signs(d), dtype=D.dtype)
+    n, c, k = S.shape
+    if d == 1:  # adj(D) = 1: signed hat values over the length, as flat rows (the fastest form)
+        sign = jnp.repeat(signs[:, 0], k)  # per (corner, node) entry
+        return ((sign[None, :] * S.reshape(n, c * k)) / D[:, :, 0])[..., None]
     g = contract("nji,cj->nci", adjugate(D), signs)  # adj(D)^T s_c, (n, corners, dim)
-    return (S[..., None] * g[:, :, None, :]) / det(D)[:, None, None, None]
+    return ((S[..., None] * g[:, :, None, :]) / det(D)[:, None, None, None]).reshape(n, c * k, d)
 
 
 def velocity_gradient(

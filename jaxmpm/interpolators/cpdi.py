@@ -12,6 +12,8 @@ from ._transfer import domain_gradient, multiplicative_F_update, points_stencil
 def _corners(r0, x, F):
     """The ``2^dim`` corners ``x_p + F diag(r0) s_c`` of each parallelogram, ``(n, 2^dim, dim)``."""
     J = F * r0[:, None, :]  # J_ij = F_ij r0_j
+    if x.shape[1] == 1:  # x_p -/+ F r0
+        return jnp.stack([x - J[:, :, 0], x + J[:, :, 0]], axis=1)
     signs = jnp.asarray(corner_signs(x.shape[1]), dtype=x.dtype)
     return x[:, None, :] + contract("nij,cj->nci", J, signs)
 
@@ -32,15 +34,19 @@ class CPDI(AbstractInterpolator):
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del corners
         n, d = x.shape
-        c = _corners(r0, x, F)
+        if d == 1:  # the segment x_p -/+ F r0, written directly (measured faster than the general form)
+            half = r0[:, 0] * F[:, 0, 0]
+            c = jnp.stack([x[:, 0] - half, x[:, 0] + half], axis=1)[..., None]
+            D = (2.0 * half)[:, None, None]
+        else:
+            c = _corners(r0, x, F)
+            D = (2.0**d) * (F * r0[:, None, :])
         idx, s, _ = points_stencil(grid, c, gradients=False)  # (n, 2^d corners, 2^d nodes)
         idx = idx.reshape(n, -1)
         w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
             return Stencil(idx, w, None, None, None)
-        D = (2.0**d) * (F * r0[:, None, :])
-        dw = domain_gradient(s, D).reshape(n, -1, d)
-        return Stencil(idx, w, idx, dw, None)
+        return Stencil(idx, w, idx, domain_gradient(s, D), None)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body
@@ -48,6 +54,9 @@ class CPDI(AbstractInterpolator):
 
     def extent(self, r0, x, F, corners):
         del corners
+        if x.shape[1] == 1:
+            half = r0 * F[:, :, 0]
+            return x - half, x + half
         c = _corners(r0, x, F)
         parts = [c[:, i] for i in range(c.shape[1])]
         return functools.reduce(jnp.minimum, parts), functools.reduce(jnp.maximum, parts)

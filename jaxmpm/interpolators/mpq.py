@@ -34,8 +34,7 @@ class MPQ(AbstractInterpolator):
             raise ValueError("MPQ needs the particles' tracked corners for dphi")
         n, d = x.shape
         cidx, s, _ = points_stencil(grid, corners, gradients=False)  # (n, 2^d corners, 2^d nodes)
-        dw = domain_gradient(s, corner_matrix(corners)).reshape(n, -1, d)
-        return Stencil(idx, w, cidx.reshape(n, -1), dw, None)
+        return Stencil(idx, w, cidx.reshape(n, -1), domain_gradient(s, corner_matrix(corners)), None)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F
@@ -49,5 +48,7 @@ class MPQ(AbstractInterpolator):
 
     def extent(self, r0, x, F, corners):
         del r0, F
+        if corners.shape[1] == 2:  # 1D: the corners are ordered, left then right
+            return jnp.minimum(x, corners[:, 0]), jnp.maximum(x, corners[:, 1])
         parts = [x] + [corners[:, i] for i in range(corners.shape[1])]
         return functools.reduce(jnp.minimum, parts), functools.reduce(jnp.maximum, parts)

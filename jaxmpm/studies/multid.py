@@ -103,7 +103,7 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
             throw=False,
         )
         body = sol.body
-        gaps, implied = [], []
+        gaps, implied, mid = [], [], None
         for k in range(len(sol.ts)):
             st = jm.State(
                 t=sol.ts[k],
@@ -119,6 +119,8 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
                 fail_step=sol.state.fail_step,
                 fail_particle=sol.state.fail_particle,
             )
+            if k == len(sol.ts) // 2:
+                mid = dict(t=float(sol.ts[k]), corners=np.asarray(jm.domain_corners(st, body)).tolist())
             gaps.append(float(np.max(jm.corner_gap(jm.domain_corners(st, body), body))))
             implied.append(float(np.max(jm.corner_gap(jm.metrics.implied_corners(st, body), body))))
         d = jm.diagnostics(scene, sol.state, body)
@@ -128,6 +130,7 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
             gap_own=gaps,
             gap_implied=implied,
             corners=np.asarray(jm.domain_corners(sol.state, body)).tolist(),
+            mid=mid,
             steps_taken=int(sol.state.step),
             failure=fail,
             mass=float(d["mass"]),
@@ -170,21 +173,26 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
 
     paths = []
     b = result["blast"]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharex=True, sharey=True)
+    fig, axes = plt.subplots(2, 2, figsize=(10, 10), sharex=True, sharey=True)
     order = [0, 1, 3, 2]  # corners (-,-), (-,+), (+,+), (+,-): around the quadrilateral
-    for ax, name in zip(axes, ("cpdi", "mpq")):
-        c = np.asarray(b[name]["corners"])[:, order, :]
-        ax.add_collection(
-            PolyCollection(c, facecolors="tab:blue", edgecolors="k", linewidths=0.3, alpha=0.35)
-        )
-        ax.autoscale()
-        ax.set_aspect("equal")
-        t = b[name]["t"][-1]
-        ax.set_title(
-            f"{name.upper()} at t = {t * 1e3:.2f} ms: max corner gap {b[name]['gap_own'][-1]:.3g} r0"
-        )
+    for row, when in enumerate(("mid", "end")):
+        for ax, name in zip(axes[row], ("cpdi", "mpq")):
+            r = b[name]
+            k = len(r["t"]) // 2 if when == "mid" else len(r["t"]) - 1
+            corners = r["mid"]["corners"] if when == "mid" else r["corners"]
+            c = np.asarray(corners)[:, order, :]
+            ax.add_collection(
+                PolyCollection(c, facecolors="tab:blue", edgecolors="k", linewidths=0.3, alpha=0.35)
+            )
+            ax.autoscale()
+            ax.set_aspect("equal")
+            ax.set_title(
+                f"{name.upper()}, t = {r['t'][k] * 1e3:.2f} ms: largest corner gap {r['gap_own'][k]:.3g} r0",
+                fontsize=9,
+            )
+        axes[row][0].set_ylabel("y (m)")
+    for ax in axes[1]:
         ax.set_xlabel("x (m)")
-    axes[0].set_ylabel("y (m)")
     fig.suptitle("Blast (quarter, symmetry planes at x = 0 and y = 0): particle domains")
     fig.tight_layout()
     p = outdir / "blast_domains.png"
