@@ -12,7 +12,7 @@ from jaxtyping import Array, Float
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
 from ._step import Model, Setup, initial_state, setup, stable_dt, step
-from ._util import as_float
+from ._util import as_float, det
 from .interpolators import AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
@@ -249,11 +249,22 @@ def _message(sol: Solution, dt: float | None) -> str:
     if p < 0:
         who = "the run"
     else:
-        X = float(sol.body.X[p, 0])
-        who = (
-            f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g} "
-            f"at step {last})"
-        )
+        if st.x.shape[1] == 1:
+            X = float(sol.body.X[p, 0])
+            who = (
+                f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g} "
+                f"at step {last})"
+            )
+        else:  # 2D, 3D: vectors, and J = det F
+
+            def vec(a):
+                return "(" + ", ".join(f"{float(c):.6g}" for c in a) + ")"
+
+            J = float(det(st.F[p]))
+            who = (
+                f"particle {p} (X = {vec(sol.body.X[p])}, x = {vec(st.x[p])}, J = det F = {J:.6g} "
+                f"at step {last})"
+            )
     return (
         f"jaxmpm: the run broke down at step {f['step']} ({when}): {who}: "
         f"{lines}. The state of the last good step ({last}) is in error.solution."

@@ -2,8 +2,10 @@
 
 Artificial cells (SPEC section 4, the talk's fix for boundary cells), stated precisely:
 
-- *Where*: ``layers`` cells outside each free (non-wall) end of the body, each holding ``ppc``
-  artificial particles at the reference positions real particles would have there.
+- *Where*: ``layers`` cells outside each free (non-wall, non-symmetry) end of the body, each holding
+  ``ppc`` artificial particles at the reference positions real particles would have there. In 2D
+  and 3D: the body's box grown by ``layers`` cells at each free face, less the body (face, edge and
+  corner cells; see ``artificial_layer``).
 - *What*: each artificial particle's current position ``x``, velocity ``v``, deformation gradient
   ``F`` and, with APIC, affine matrix ``C``; its mass and half-length are those of a real particle.
 - *How*: ``x`` and ``v`` by a linear least-squares fit in the reference coordinate ``X`` to the

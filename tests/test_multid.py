@@ -313,3 +313,9 @@ def test_vtk_grid_in_2d_is_in_vtk_order(tmp_path):
     np.testing.assert_array_equal(mass.reshape(nx, nx).T.reshape(-1), np.asarray(m_flat))
     p = read_legacy(sorted(tmp_path.glob("particles_*.vtk"))[-1])
     np.testing.assert_array_equal(p["points"][:, :2], np.asarray(sol.state.x))
+
+
+def test_a_2d_breakdown_names_the_particle_by_its_vectors():
+    scene = jm.Blast(P0=2e5, rho0=2.0, pad=40)
+    with pytest.raises(jm.SimulationError, match=r"particle \d+ \(X = \(0\.\d+, 0\.\d+\), x = \(.*J = det F"):
+        jm.simulate(scene, jm.MPQ(), dt=0.25 * float(scene.h) / float(scene.wave_speed), steps=30)

@@ -1,5 +1,6 @@
 """General manufactured solution: any displacement field, with its body force by autodiff (SPEC 6.2)."""
 
+import abc
 from collections.abc import Callable
 
 import equinox as eqx
@@ -15,7 +16,44 @@ MODELS = ("neo-hookean", "gas")
 ENDS = ("wall", "traction")
 
 
-class Manufactured(AbstractScene):
+class AbstractDisplacementScene(AbstractScene):
+    """A scene moving as a prescribed displacement ``u(X, t)`` (a method ``displacement``), held to it
+    by the body force ``b = a - (1 / rho0) Div_X P`` with the stress ``P = _flux(X, t)``; ``F``,
+    ``v``, ``a`` and the divergence by autodiff (SPEC 6.2)."""
+
+    @abc.abstractmethod
+    def displacement(self, X, t):
+        """``u(X, t)``, shape ``(dim,)``."""
+
+    @abc.abstractmethod
+    def _flux(self, X, t):
+        """The first Piola stress at ``(X, t)``, whose divergence the body force balances."""
+
+    def _F(self, X, t):
+        return jnp.eye(X.shape[0], dtype=X.dtype) + jax.jacfwd(self.displacement)(X, t)
+
+    def _velocity(self, X, t):
+        return jax.jacfwd(self.displacement, argnums=1)(X, t)
+
+    def initial_velocity(self, X):
+        return self._velocity(X, jnp.zeros((), X.dtype))
+
+    def body_force(self, X, t):
+        a = jax.jacfwd(self._velocity, argnums=1)(X, t)
+        div = jnp.einsum("abb->a", jax.jacfwd(self._flux)(X, t))  # d P_aB / dX_B
+        return a - div / self.rho0
+
+    def exact(self, X, t):
+        F = self._F(X, t)
+        return dict(
+            x=X + self.displacement(X, t),
+            v=self._velocity(X, t),
+            F=F,
+            sigma=self.material().stress(F),
+        )
+
+
+class Manufactured(AbstractDisplacementScene):
     """A body moving as a prescribed displacement ``u(X, t)``, held to it by a body force.
 
     From ``u`` (a JAX function), autodiff gives ``F = 1 + du/dX``, ``v = du/dt``, ``a = d2u/dt2``,
@@ -90,34 +128,14 @@ class Manufactured(AbstractScene):
         L = self.length
         return self.A * jnp.sin(jnp.pi * X / L) * jnp.sin(self.wave_speed * jnp.pi * t / L)
 
-    def _F(self, X, t):
-        return jnp.eye(1, dtype=X.dtype) + jax.jacfwd(self.displacement)(X, t)
-
-    def _velocity(self, X, t):
-        return jax.jacfwd(self.displacement, argnums=1)(X, t)
-
     def _stress(self, X, t):
         return self.material().stress(self._F(X, t))
 
+    def _flux(self, X, t):
+        return self._stress(X, t)  # in 1D with unit area the Cauchy stress is the first Piola stress
+
     def initial_position(self, X):
         return X + self.displacement(X, jnp.zeros((), X.dtype))
-
-    def initial_velocity(self, X):
-        return self._velocity(X, jnp.zeros((), X.dtype))
-
-    def body_force(self, X, t):
-        a = jax.jacfwd(self._velocity, argnums=1)(X, t)
-        div = jnp.einsum("abb->a", jax.jacfwd(self._stress)(X, t))  # d sigma_ab / dX_b
-        return a - div / self.rho0
-
-    def exact(self, X, t):
-        F = self._F(X, t)
-        return dict(
-            x=X + self.displacement(X, t),
-            v=self._velocity(X, t),
-            F=F,
-            sigma=self.material().stress(F),
-        )
 
     def traction(self, t):
         if self.ends == "wall":
