@@ -1,5 +1,6 @@
 """Errors and diagnostics over the real particles (SPEC section 7)."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -37,7 +38,13 @@ def exact_fields(scene: AbstractScene, body: Body, t) -> dict[str, Array] | None
     """The exact ``x, v, F, sigma`` at every real particle's ``X`` at time ``t`` (or ``None``)."""
     if scene.exact is None:
         return None
-    return jax.vmap(scene.exact, in_axes=(0, None))(body.X, t)
+    return _exact_fields(scene, body.X, t)
+
+
+@eqx.filter_jit
+def _exact_fields(scene, X, t):
+    # compiled: an exact solution made by autodiff (manufactured scenes) costs seconds op by op
+    return jax.vmap(scene.exact, in_axes=(0, None))(X, t)
 
 
 def implied_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
