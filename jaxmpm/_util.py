@@ -83,6 +83,14 @@ def adjugate(A):
     return det(A)[..., None, None] * jnp.linalg.inv(A)
 
 
+def lattice(counts):
+    """The integer multi-indices of a ``counts[0] x counts[1] x ...`` lattice as a static
+    ``(prod(counts), len(counts))`` array, the last axis fastest (the flat order of grids and bodies)."""
+    import numpy as np
+
+    return np.indices(tuple(counts)).reshape(len(counts), -1).T
+
+
 def corner_signs(dim: int):
     """The ``2^dim`` corners of the reference cube ``[-1, 1]^dim`` as a static ``(2^dim, dim)`` array,
     corner ``c`` having ``+1`` along axis ``a`` where bit ``dim - 1 - a`` of ``c`` is set (the last

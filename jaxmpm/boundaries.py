@@ -30,6 +30,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._util import lattice
+
 
 class ArtificialLayer(eqx.Module):
     """Static recipe for the artificial particles of a body: sources and extrapolation weights.
@@ -176,19 +178,20 @@ def traction_points(cells: int, ppc: int, h, faces: tuple[bool, ...]) -> Tractio
     dim = len(faces) // 2
     n = cells * ppc
     pts, areas, counts, report = [], [], [], []
-    lattice = np.arange(n + 1) / ppc
+    along = np.arange(n + 1) / ppc  # the corners along a face
     share = np.ones(n + 1)
     share[[0, -1]] = 0.5
     for f, on in enumerate(faces):
         if not on:
             continue
         a, high = divmod(f, 2)
-        coords = [lattice] * dim
+        coords = [along] * dim
         coords[a] = np.array([float(cells) if high else 0.0])
         weights = [share] * dim
         weights[a] = np.ones(1)
-        P = np.stack([m.reshape(-1) for m in np.meshgrid(*coords, indexing="ij")], axis=1)
-        W = np.prod(np.stack([m.reshape(-1) for m in np.meshgrid(*weights, indexing="ij")], axis=1), axis=1)
+        L = lattice([len(c) for c in coords])
+        P = np.stack([coords[b][L[:, b]] for b in range(dim)], axis=1)
+        W = np.prod(np.stack([weights[b][L[:, b]] for b in range(dim)], axis=1), axis=1)
         pts.append(P)
         areas.append(W * (1.0 / ppc) ** (dim - 1))
         counts.append(P.shape[0])
@@ -202,9 +205,6 @@ def traction_points(cells: int, ppc: int, h, faces: tuple[bool, ...]) -> Tractio
     return TractionPoints(X=X, area=area, counts=tuple(counts), report=tuple(report))
 
 
-FACE_TYPES = ("free", "wall", "symmetry")
-
-
 def fixed_mask(axes: tuple[int, ...], pad: int, cells: int, low: str, high: str) -> np.ndarray | None:
     """Static ``(n_nodes, dim)`` mask of the nodal velocity components held at zero.
 
@@ -213,8 +213,7 @@ def fixed_mask(axes: tuple[int, ...], pad: int, cells: int, low: str, high: str)
     slides along it. The same face types apply to every axis. In 1D a symmetry plane is a wall.
     """
     dim = len(axes)
-    mesh = np.meshgrid(*[np.arange(n) for n in axes], indexing="ij")
-    idx = np.stack([m.reshape(-1) for m in mesh], axis=1)
+    idx = lattice(axes)
     mask = np.zeros((idx.shape[0], dim), dtype=bool)
     for a in range(dim):
         for kind, beyond in ((low, idx[:, a] <= pad), (high, idx[:, a] >= pad + cells)):

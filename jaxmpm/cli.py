@@ -467,6 +467,7 @@ def _print_particles_nd(sol, ex) -> None:
     import numpy as np
 
     st = sol.state
+    X, x, v = np.asarray(sol.body.X), np.asarray(st.x), np.asarray(st.v)  # to the host once, not per row
     J = np.linalg.det(np.asarray(st.F))
     p_mean = np.trace(np.asarray(st.sigma), axis1=1, axis2=2) / st.F.shape[1]
     head = f"{'p':>6} {'X':>28} {'x':>28} {'v':>28} {'J':>12} {'tr(sigma)/dim':>14}"
@@ -475,10 +476,7 @@ def _print_particles_nd(sol, ex) -> None:
         head += f" {'J_exact':>12}"
     print(head)
     for p in range(sol.body.n):
-        row = (
-            f"{p:>6} {_fmt(sol.body.X[p]):>28} {_fmt(st.x[p]):>28} {_fmt(st.v[p]):>28} {J[p]:>12.8f} "
-            f"{p_mean[p]:>14.6g}"
-        )
+        row = f"{p:>6} {_fmt(X[p]):>28} {_fmt(x[p]):>28} {_fmt(v[p]):>28} {J[p]:>12.8f} {p_mean[p]:>14.6g}"
         if ex is not None:
             row += f" {J_ex[p]:>12.8f}"
         print(row)

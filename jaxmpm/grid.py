@@ -4,8 +4,9 @@ import math
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float, Int
+
+from ._util import lattice
 
 
 class Grid(eqx.Module):
@@ -62,17 +63,12 @@ class Grid(eqx.Module):
             return self.x_min + (self.n_nodes - 1) * self.h
         return self.x_min + jnp.asarray([n - 1 for n in self.shape], dtype=self.h.dtype) * self.h
 
-    def index_grid(self) -> np.ndarray:
-        """Integer ``(n_nodes, dim)`` multi-indices of the nodes, in flat order (static)."""
-        mesh = np.meshgrid(*[np.arange(n) for n in self.axes], indexing="ij")
-        return np.stack([m.reshape(-1) for m in mesh], axis=1)
-
     def nodes(self) -> Float[Array, "n_nodes dim"]:
         """Node positions, shape ``(n_nodes, dim)``."""
         if self.shape is None:
             i = jnp.arange(self.n_nodes, dtype=self.h.dtype)
             return self.x_min[None, :] + i[:, None] * self.h
-        i = jnp.asarray(self.index_grid(), dtype=self.h.dtype)
+        i = jnp.asarray(lattice(self.axes), dtype=self.h.dtype)
         return self.x_min[None, :] + i * self.h
 
     def locate(self, x: Float[Array, "..."], axis: int = 0) -> tuple[Int[Array, "..."], Float[Array, "..."]]:
@@ -96,10 +92,6 @@ class Grid(eqx.Module):
             flat = flat + i * s
             valid = valid & (i >= 0) & (i < n)
         return jnp.where(valid, flat, self.n_nodes)
-
-    def reshape(self, field: Float[Array, "n_nodes ..."]) -> Float[Array, "..."]:
-        """A flat nodal field as an array of shape ``axes + tail``."""
-        return field.reshape(self.axes + field.shape[1:])
 
     def scatter(self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."]) -> Float[Array, "n_nodes ..."]:
         """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.

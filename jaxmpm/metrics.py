@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._util import corner_signs
+from .interpolators.cpdi import parallelogram_corners
 from .particles import Body, State
 from .scenes import AbstractScene
 
@@ -50,9 +50,7 @@ def _exact_fields(scene, X, t):
 def implied_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
     """Each particle's domain corners as its ``x`` and ``F`` imply them, ``x_p + F diag(r0) s_c``
     (CPDI's parallelogram; in 1D ``x_p -/+ F r0``)."""
-    J = state.F * body.r0[:, None, :]
-    signs = jnp.asarray(corner_signs(state.x.shape[1]), dtype=state.x.dtype)
-    return state.x[:, None, :] + jnp.einsum("nij,cj->nci", J, signs)
+    return parallelogram_corners(body.r0, state.x, state.F)
 
 
 def domain_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
@@ -69,10 +67,10 @@ def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Arra
     half-length ``r0``. Zero where neighbouring domains meet (MPQ's tracked corners, always); in 1D
     the magnitude of ``separation``. A gap and an overlap both count.
     """
-    return _safe_sqrt(corner_gap_sq(corners, body))
+    return _safe_sqrt(_corner_gap_sq(corners, body))
 
 
-def corner_gap_sq(corners, body):
+def _corner_gap_sq(corners, body):
     ids = body.corner_ids.reshape(-1)
     nc = body.X_corners.shape[0]
     c = corners.reshape(-1, corners.shape[-1])
@@ -149,7 +147,7 @@ def errors(
     """
     n = body.n
     if state.x.shape[1] > 1:  # the implied parallelograms' largest corner gap
-        sep = _safe_sqrt(jnp.max(corner_gap_sq(implied_corners(state, body), body)))
+        sep = _safe_sqrt(jnp.max(_corner_gap_sq(implied_corners(state, body), body)))
     elif n > 1:
         sep = _safe_sqrt(jnp.max(jnp.square(separation(state, body))))
     else:

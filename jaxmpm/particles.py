@@ -8,6 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from ._util import corner_signs, lattice
+
 
 class Body(eqx.Module):
     """The reference configuration of the real particles: fixed through a run.
@@ -62,19 +64,16 @@ def seed_box(cells: tuple[int, ...], ppc: int, h: Array, rho0: Array) -> Body:
     """
     d = len(cells)
     counts = [c * ppc for c in cells]
-    mesh = np.meshgrid(*[np.arange(n) for n in counts], indexing="ij")
-    ip = np.stack([m.reshape(-1) for m in mesh], axis=1)  # (n, dim) particle multi-indices
+    ip = lattice(counts)  # (n, dim) particle multi-indices
     n = ip.shape[0]
     X = jnp.asarray((ip + 0.5) / ppc, dtype=h.dtype) * h  # in cells, static, times h
     r0 = jnp.full((n, d), 0.5 / ppc, dtype=h.dtype) * h
     V0 = 2.0 * r0[:, 0]
     for a in range(1, d):
         V0 = V0 * (2.0 * r0[:, a])
-    cmesh = np.meshgrid(*[np.arange(c + 1) for c in counts], indexing="ij")
-    ic = np.stack([m.reshape(-1) for m in cmesh], axis=1)
-    X_corners = jnp.asarray(ic / ppc, dtype=h.dtype) * h
+    X_corners = jnp.asarray(lattice([c + 1 for c in counts]) / ppc, dtype=h.dtype) * h
     cstride = [int(np.prod([c + 1 for c in counts[a + 1 :]])) for a in range(d)]
-    bits = (np.arange(2**d)[:, None] >> (d - 1 - np.arange(d))[None, :]) & 1  # as corner_signs
+    bits = (corner_signs(d) > 0).astype(np.int64)  # corner c of a particle: +1 along axis a
     ids = ((ip[:, None, :] + bits[None, :, :]) * np.asarray(cstride)[None, None, :]).sum(-1).astype(np.int32)
     cell = ip // ppc
     boundary = np.any((cell == 0) | (cell == np.asarray(cells)[None, :] - 1), axis=1)

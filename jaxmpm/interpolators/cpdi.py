@@ -9,7 +9,7 @@ from ._base import AbstractInterpolator, Stencil
 from ._transfer import domain_gradient, multiplicative_F_update, points_stencil
 
 
-def _corners(r0, x, F):
+def parallelogram_corners(r0, x, F):
     """The ``2^dim`` corners ``x_p + F diag(r0) s_c`` of each parallelogram, ``(n, 2^dim, dim)``."""
     J = F * r0[:, None, :]  # J_ij = F_ij r0_j
     if x.shape[1] == 1:  # x_p -/+ F r0
@@ -39,7 +39,7 @@ class CPDI(AbstractInterpolator):
             c = jnp.stack([x[:, 0] - half, x[:, 0] + half], axis=1)[..., None]
             D = (2.0 * half)[:, None, None]
         else:
-            c = _corners(r0, x, F)
+            c = parallelogram_corners(r0, x, F)
             D = (2.0**d) * (F * r0[:, None, :])
         idx, s, _ = points_stencil(grid, c, gradients=False)  # (n, 2^d corners, 2^d nodes)
         idx = idx.reshape(n, -1)
@@ -57,6 +57,6 @@ class CPDI(AbstractInterpolator):
         if x.shape[1] == 1:
             half = r0 * F[:, :, 0]
             return x - half, x + half
-        c = _corners(r0, x, F)
+        c = parallelogram_corners(r0, x, F)
         parts = [c[:, i] for i in range(c.shape[1])]
         return functools.reduce(jnp.minimum, parts), functools.reduce(jnp.maximum, parts)

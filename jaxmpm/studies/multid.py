@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm.interpolators.cpdi import parallelogram_corners
 
 BETA, DT = 200.0, 1e-5
 NAMES = ("spq", "gimp", "cpgimp", "cpdi", "mpq")
@@ -105,24 +106,12 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
         body = sol.body
         gaps, implied, mid = [], [], None
         for k in range(len(sol.ts)):
-            st = jm.State(
-                t=sol.ts[k],
-                step=sol.state.step,
-                x=sol.history["x"][k],
-                v=sol.state.v,
-                F=sol.history["F"][k],
-                sigma=sol.state.sigma,
-                C=None,
-                corners=sol.history["corners"][k] if name == "mpq" else None,
-                x_traction=None,
-                status=sol.state.status,
-                fail_step=sol.state.fail_step,
-                fail_particle=sol.state.fail_particle,
-            )
+            parallelograms = parallelogram_corners(body.r0, sol.history["x"][k], sol.history["F"][k])
+            own = body.particle_corners(sol.history["corners"][k]) if name == "mpq" else parallelograms
             if k == len(sol.ts) // 2:
-                mid = dict(t=float(sol.ts[k]), corners=np.asarray(jm.domain_corners(st, body)).tolist())
-            gaps.append(float(np.max(jm.corner_gap(jm.domain_corners(st, body), body))))
-            implied.append(float(np.max(jm.corner_gap(jm.metrics.implied_corners(st, body), body))))
+                mid = dict(t=float(sol.ts[k]), corners=np.asarray(own).tolist())
+            gaps.append(float(np.max(jm.corner_gap(own, body))))
+            implied.append(float(np.max(jm.corner_gap(parallelograms, body))))
         d = jm.diagnostics(scene, sol.state, body)
         fail = sol.failure()
         out[name] = dict(
@@ -164,6 +153,15 @@ def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
     return rows
 
 
+def _save(fig, path: pathlib.Path) -> pathlib.Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
 def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     import matplotlib
 
@@ -194,11 +192,7 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     for ax in axes[1]:
         ax.set_xlabel("x (m)")
     fig.suptitle("Blast (quarter, symmetry planes at x = 0 and y = 0): particle domains")
-    fig.tight_layout()
-    p = outdir / "blast_domains.png"
-    fig.savefig(p, dpi=130)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(_save(fig, outdir / "blast_domains.png"))
 
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for name, style in (("cpdi", "-"), ("mpq", "--")):
@@ -212,31 +206,23 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.legend(fontsize=8)
     ax.set_title("Shared corners: MPQ's coincide (0), CPDI's separate")
-    fig.tight_layout()
-    p = outdir / "blast_gap.png"
-    fig.savefig(p, dpi=130)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(_save(fig, outdir / "blast_gap.png"))
 
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for dim_rows in (result["axis_aligned_2d"],):
-        for name in sorted({r["interpolator"] for r in dim_rows}):
-            rr = [r for r in dim_rows if r["interpolator"] == name]
-            ax.loglog(
-                [1 / r["cells"] for r in rr],
-                [r["x_rms_abs"] for r in rr],
-                "o-",
-                label=f"{name} (order {rr[0]['order_fit']:.2f})",
-            )
+    rows = result["axis_aligned_2d"]
+    for name in sorted({r["interpolator"] for r in rows}):
+        rr = [r for r in rows if r["interpolator"] == name]
+        ax.loglog(
+            [1 / r["cells"] for r in rr],
+            [r["x_rms_abs"] for r in rr],
+            "o-",
+            label=f"{name} (order {rr[0]['order_fit']:.2f})",
+        )
     ax.set_xlabel("h")
     ax.set_ylabel("RMS position error at t = L / (2c)")
     ax.set_title("Axis-aligned manufactured solution, 2D")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    p = outdir / "axis_aligned_convergence.png"
-    fig.savefig(p, dpi=130)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(_save(fig, outdir / "axis_aligned_convergence.png"))
     return paths
 
 
