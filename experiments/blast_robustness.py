@@ -3,7 +3,7 @@
 Gas at P0 (2 or 1.2 bar, density P0 / 1e5 kg/m^3) against 1 bar; a charge of half-width 0.5 m as a
 quarter with symmetry planes (2D) and the slab of the same half-width with a wall (1D); h = 1/16,
 8 cells, pad 60, dt = h / (4 c), 300 steps; every interpolator, with and without artificial cells,
-USL and MUSL. Prints one line per case. About 2 minutes on 2 cores.
+USL and MUSL. Prints one line per case. About 30 s on 2 cores.
 
     python experiments/blast_robustness.py
 """
