@@ -51,6 +51,7 @@ from .interpolators import (
 from .interpolators import (
     AbstractInterpolator as AbstractInterpolator,
 )
+from .interpolators import INTERPOLATORS as INTERPOLATORS
 from .materials import (
     AbstractMaterial as AbstractMaterial,
 )
@@ -85,17 +86,10 @@ from .sensitivity import gradient as gradient
 from .transfers import APIC as APIC
 from .transfers import FLIP as FLIP
 from .transfers import PIC as PIC
+from .transfers import TRANSFERS as TRANSFERS
 from .transfers import AbstractTransfer as AbstractTransfer
 from .viscosity import ArtificialViscosity as ArtificialViscosity
 
-INTERPOLATORS = {
-    "spq": SPQ,
-    "gimp": GIMP,
-    "cpgimp": lambda: GIMP(contiguous=True),
-    "cpdi": CPDI,
-    "mpq": MPQ,
-}
-TRANSFERS = {"flip": FLIP, "pic": PIC, "apic": APIC}
 
 try:
     __version__ = version("jaxmpm")

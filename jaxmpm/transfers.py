@@ -80,3 +80,7 @@ class APIC(AbstractTransfer):
 
 
 TRANSFERS = {"flip": FLIP, "pic": PIC, "apic": APIC}
+
+
+TRANSFERS: dict[str, type[AbstractTransfer]] = {cls.name: cls for cls in (FLIP, PIC, APIC)}
+"""The one registry of transfers, by the name each is known by (``transfer.name``, ``--transfer``)."""

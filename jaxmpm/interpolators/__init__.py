@@ -1,8 +1,21 @@
 """The interpolators, side by side: SPQ, GIMP (uGIMP and cpGIMP), CPDI and MPQ."""
 
+import functools
+from collections.abc import Callable
+
 from ._base import AbstractInterpolator as AbstractInterpolator
 from ._base import Stencil as Stencil
 from .cpdi import CPDI as CPDI
 from .gimp import GIMP as GIMP
 from .mpq import MPQ as MPQ
 from .spq import SPQ as SPQ
+
+INTERPOLATORS: dict[str, Callable[[], AbstractInterpolator]] = {
+    "spq": SPQ,
+    "gimp": GIMP,
+    "cpgimp": functools.partial(GIMP, contiguous=True),
+    "cpdi": CPDI,
+    "mpq": MPQ,
+}
+"""The one registry of interpolators: the name each is known by (``interpolator.name``, the command
+line's ``--interpolator``, a checkpoint's metadata) and how to make it with its defaults."""
