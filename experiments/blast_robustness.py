@@ -16,6 +16,14 @@ import jaxmpm as jm  # noqa: E402
 
 
 def verdict(sol):
+    """``"ok"``, or ``"fail@STEP (quantity)"`` for a run that broke down.
+
+    Args:
+        sol: a ``Solution`` (run with ``throw=False``).
+
+    Returns:
+        The verdict, one word or a short phrase.
+    """
     f = sol.failure()
     return "ok" if f is None else f"fail@{f['step']} ({f['quantities'][0].split(' (')[0]})"
 

@@ -24,15 +24,27 @@ import subprocess
 import sys
 import time
 
-from jaxmpm.bench import reverse_objective as objective
-from jaxmpm.bench import xla_bytes
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # the checkout's benchmarks/
+
+from benchmarks.bench import reverse_objective as objective  # noqa: E402
+from benchmarks.bench import xla_bytes  # noqa: E402
 
 STEPS = (1_000, 10_000, 100_000)
 SMALL_STEPS = (200, 1_000)
 
 
 def one(mode: str, steps: int) -> dict:
-    """Measure one configuration in this process: mode is forward, reverse or plain."""
+    """Measure one configuration in this process.
+
+    Args:
+        mode: ``"forward"``, ``"reverse"`` (checkpointed) or ``"plain"`` (uncheckpointed reverse mode,
+            compiled only).
+        steps: the step count.
+
+    Returns:
+        ``mode``, ``steps``, ``compile_s``, ``xla_bytes``, and unless ``plain`` ``run_s``, ``value``
+        and ``peak_rss_bytes``.
+    """
     import jax
     import jax.numpy as jnp
 
@@ -58,6 +70,15 @@ def one(mode: str, steps: int) -> dict:
 
 
 def main(small: bool = False, out: str = "results/grad_memory.csv") -> list[dict]:
+    """Measure every configuration, each in its own process, print a line per step count, write a CSV.
+
+    Args:
+        small: 200 and 1,000 steps instead of 1,000 to 100,000.
+        out: the CSV file to write.
+
+    Returns:
+        One dict per configuration (``mode``, ``steps``, times, bytes).
+    """
     rows = []
     for steps in SMALL_STEPS if small else STEPS:
         for mode in ("forward", "reverse", "plain"):

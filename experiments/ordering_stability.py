@@ -17,6 +17,14 @@ C0 = (1.4 * 2.0e5 / 1.0) ** 0.5  # sound speed of the default gas at F = 1
 
 
 def main(small: bool = False) -> dict:
+    """Run every case under USL and MUSL and print one line per ordering, size and CFL number.
+
+    Args:
+        small: 8 cells only.
+
+    Returns:
+        ``{(ordering, cells, cfl, interpolator, artificial_cells): failed step (-1 if none)}``.
+    """
     results = {}
     sizes = ((8, 0.125),) if small else ((8, 0.125), (50, 0.02), (500, 0.002))
     for ordering in ("usl", "musl"):

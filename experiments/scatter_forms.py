@@ -1,4 +1,4 @@
-"""How XLA's CPU backend prices the ways of writing the step's particle-to-grid sums (issue 6).
+"""How XLA's CPU backend prices the ways of writing the step's particle-to-grid sums.
 
 Each form sums the same ``2 n`` weighted values (two nodes per particle, particles sorted as in a
 1D body) onto ``n_nodes`` nodes, for three quantities (mass, momentum, force), inside a
@@ -28,6 +28,14 @@ import jax
 
 
 def forms(n_nodes):
+    """The ways of writing the three particle-to-grid sums.
+
+    Args:
+        n_nodes: grid nodes.
+
+    Returns:
+        ``{name: f(i, w1, [mass, momentum, force] values) -> [three nodal arrays]}``.
+    """
     import jax.numpy as jnp
 
     z = lambda *tail: jnp.zeros((n_nodes, *tail))  # noqa: E731
@@ -82,6 +90,11 @@ def forms(n_nodes):
 
 
 def gathers():
+    """The two ways of writing a 1D grid-to-particle gather.
+
+    Returns:
+        ``{name: f(i, w1, field) -> values at the particles}``.
+    """
     import jax.numpy as jnp
 
     def per_node(i, w1, field):
@@ -95,6 +108,17 @@ def gathers():
 
 
 def time_form(fn, args, reps=30):
+    """Seconds per call of ``fn`` inside a compiled ``lax.scan`` of ``reps`` calls (after a warm run).
+
+    Args:
+        fn: the form.
+        args: its arguments (the second one is the array the scan perturbs).
+        reps: calls per scan.
+
+    Returns:
+        Seconds per call.
+    """
+
     def loop(*a):
         def body(c, _):
             out = fn(a[0], a[1] + c * 0, *a[2:])
@@ -111,6 +135,7 @@ def time_form(fn, args, reps=30):
 
 
 def main():
+    """Time every form at each size of ``--n`` and print milliseconds and nanoseconds per value."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--n", default="262144,1048576")
     p.add_argument("--x64", action="store_true")

@@ -5,7 +5,11 @@ Usage: python experiments/sensitivity.py [OUT_DIR] [--small] [--musl]   (default
 
 import sys
 
-from jaxmpm.studies import sensitivity
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from jaxmpm.studies import sensitivity  # noqa: E402
 
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]

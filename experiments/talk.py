@@ -2,7 +2,11 @@
 
 import sys
 
-from jaxmpm.studies import talk
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from jaxmpm.studies import talk  # noqa: E402
 
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]

@@ -1,21 +1,33 @@
-"""Figures (matplotlib, from the ``figures`` extra). Imported only by what draws."""
+"""Figures (matplotlib, from the ``figures`` extra). Imported only by what draws.
+
+Figures are ``matplotlib.figure.Figure`` objects made directly, never through ``pyplot``: they need
+no display backend (saving a PNG draws with Agg), change no global matplotlib state, and are freed
+with their last reference.
+"""
 
 from __future__ import annotations
 
 
-def pyplot():
-    """``matplotlib.pyplot`` on the non-interactive Agg backend, with a clear error if missing."""
+def figure(**kwargs):
+    """A new ``matplotlib.figure.Figure``, outside ``pyplot``.
+
+    Args:
+        **kwargs: passed to ``Figure`` (``figsize``, ...).
+
+    Returns:
+        The figure; add axes with ``fig.subplots(...)`` and write it with ``fig.savefig(path)``.
+
+    Raises:
+        ImportError: matplotlib is not installed.
+    """
     try:
-        import matplotlib
+        from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the environment
         raise ImportError("figures need matplotlib: pip install 'jaxmpm[figures]'") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(**kwargs)
 
 
-def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | None = None):
+def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | None = None) -> None:
     """A grid of along-the-bar profiles.
 
     Args:
@@ -25,17 +37,10 @@ def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | N
         path: where to write the PNG.
         exact_line: draw a dashed reference line at this y (the manufactured solution).
     """
-    plt = pyplot()
     rows = list(dict.fromkeys(r for r, _ in panels))
     cols = list(dict.fromkeys(c for _, c in panels))
-    fig, axes = plt.subplots(
-        len(rows),
-        len(cols),
-        figsize=(3.2 * len(cols), 2.8 * len(rows)),
-        sharex=True,
-        sharey="row",
-        squeeze=False,
-    )
+    fig = figure(figsize=(3.2 * len(cols), 2.8 * len(rows)))
+    axes = fig.subplots(len(rows), len(cols), sharex=True, sharey="row", squeeze=False)
     for i, r in enumerate(rows):
         for j, c in enumerate(cols):
             ax = axes[i][j]
@@ -54,13 +59,20 @@ def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | N
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
-def time_series(series, *, ylabel: str, title: str, path, logy: bool = True):
-    """Curves against time, one panel per key of ``series``: ``{panel: [(label, t, y), ...]}``."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(series), figsize=(5.0 * len(series), 3.6), sharey=True, squeeze=False)
+def time_series(series, *, ylabel: str, title: str, path, logy: bool = True) -> None:
+    """Curves against time, one panel per key of ``series``.
+
+    Args:
+        series: ``{panel: [(label, t, y), ...]}``.
+        ylabel: the y-axis label (of the first panel; the panels share it).
+        title: the figure title.
+        path: where to write the PNG.
+        logy: a logarithmic y axis.
+    """
+    fig = figure(figsize=(5.0 * len(series), 3.6))
+    axes = fig.subplots(1, len(series), sharey=True, squeeze=False)
     for ax, (panel, curves) in zip(axes[0], series.items()):
         for label, t, y in curves:
             ax.plot(t, y, label=label)
@@ -74,4 +86,3 @@ def time_series(series, *, ylabel: str, title: str, path, logy: bool = True):
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)

@@ -1,5 +1,5 @@
-"""The performance work (issue 6): the fast paths compute what the plain ones did, the benchmark's
-reference codes compute the same thing, nothing recompiles across parameter values, and the
+"""Performance: the fast paths compute what the plain ones did, the benchmark's reference codes
+(``benchmarks/``) compute the same thing, nothing recompiles across parameter values, and the
 ``jaxmpm bench`` command keeps its contract. Speed itself is measured by ``jaxmpm bench``, never
 here."""
 
@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import jaxmpm as jm
-from jaxmpm import _baselines, bench, cli
+from benchmarks import _baselines, bench
+from jaxmpm import cli
 from jaxmpm import status as st_bits
 from jaxmpm._util import contract
 

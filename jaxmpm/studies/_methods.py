@@ -2,10 +2,8 @@
 
 import jaxmpm as jm
 
-METHODS = {
-    "SPQ": jm.SPQ,
-    "uGIMP": jm.GIMP,
-    "cpGIMP": lambda: jm.GIMP(contiguous=True),
-    "CPDI": jm.CPDI,
-    "MPQ": jm.MPQ,
-}
+_LABELS = {"spq": "SPQ", "gimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI", "mpq": "MPQ"}
+
+METHODS = {_LABELS.get(name, name.upper()): make for name, make in jm.INTERPOLATORS.items()}
+"""Every interpolator of ``jaxmpm.INTERPOLATORS``, in its order, by its label in the studies' tables
+(``uGIMP`` is ``gimp``, ``cpGIMP`` is ``cpgimp``), to the callable that makes it."""

@@ -1,4 +1,4 @@
-"""Observed orders of convergence on the verification ladder (issue 4).
+"""Observed orders of convergence on the verification ladder.
 
 Every scene with an exact answer runs to a fixed end time with the CFL-limited step (``dt`` shrinks
 with ``h``) at four or more resolutions, for each interpolator and transfer. The observed order of an
@@ -23,8 +23,10 @@ import numpy as np
 import jaxmpm as jm
 
 from ._methods import METHODS
+from ._runtime import require_float64
 
-TRANSFERS = {"FLIP": jm.FLIP, "PIC": jm.PIC, "APIC": jm.APIC}
+TRANSFERS = {name.upper(): make for name, make in jm.TRANSFERS.items()}
+"""Every transfer of ``jaxmpm.TRANSFERS`` by its label in the tables (``FLIP``, ``PIC``, ``APIC``)."""
 ERRORS = ("x_rms_abs", "F_rms_rel", "v_rms_abs")
 
 
@@ -46,6 +48,14 @@ def _quarter(sc) -> float:
 
 
 def cases(small: bool = False) -> list[Case]:
+    """The rungs of the ladder.
+
+    Args:
+        small: coarser grids.
+
+    Returns:
+        One ``Case`` per scene family.
+    """
     res = (8, 16, 32, 64) if small else (16, 32, 64, 128)
     res_front = (16, 32, 64, 128) if small else (32, 64, 128, 256)
     return [
@@ -108,6 +118,16 @@ def cases(small: bool = False) -> list[Case]:
 
 
 def run_case(case: Case, method: str, transfer: str) -> list[dict]:
+    """Run one case at each of its resolutions.
+
+    Args:
+        case: the case.
+        method: the interpolator's label (``METHODS``).
+        transfer: the transfer's label (``TRANSFERS``).
+
+    Returns:
+        One row per resolution: the errors ``ERRORS`` (NaN after a breakdown) and the status.
+    """
     rows = []
     for n in case.cells:
         sc = case.make(n)
@@ -141,7 +161,15 @@ def run_case(case: Case, method: str, transfer: str) -> list[dict]:
 
 
 def fit_order(h, e) -> tuple[float, float]:
-    """``(least-squares order, finest-pair order)`` of errors ``e`` at spacings ``h`` (finite ones)."""
+    """The observed order of errors against grid spacing.
+
+    Args:
+        h: grid spacings.
+        e: errors at them (non-finite or zero ones are left out).
+
+    Returns:
+        ``(least-squares order, finest-pair order)``, NaN with fewer than two errors.
+    """
     h, e = np.asarray(h, float), np.asarray(e, float)
     ok = np.isfinite(e) & (e > 0)
     if ok.sum() < 2:
@@ -152,6 +180,15 @@ def fit_order(h, e) -> tuple[float, float]:
 
 
 def orders(rows: list[dict]) -> list[dict]:
+    """The observed orders of each scene, method and transfer.
+
+    Args:
+        rows: the ``run_case`` rows.
+
+    Returns:
+        One row per scene, method and transfer: each error's order (fit and finest pair), its value at
+        the finest resolution, and the breakdowns.
+    """
     groups: dict = {}
     for r in rows:
         groups.setdefault((r["scene"], r["method"], r["transfer"]), []).append(r)
@@ -172,6 +209,15 @@ def _f(x, fmt=".2f"):
 
 
 def markdown(order_rows: list[dict], all_cases: list[Case]) -> str:
+    """The orders as markdown tables, one per case.
+
+    Args:
+        order_rows: what ``orders`` returns.
+        all_cases: the cases, in order.
+
+    Returns:
+        The tables.
+    """
     lines = []
     for case in all_cases:
         rs = [o for o in order_rows if o["scene"] == case.name]
@@ -199,15 +245,34 @@ def markdown(order_rows: list[dict], all_cases: list[Case]) -> str:
     return "\n".join(lines)
 
 
-def main(out: str, small: bool = False, transfers=None, methods=None, scenes=None) -> dict:
+def main(
+    out: str,
+    small: bool = False,
+    transfers=None,
+    methods=None,
+    scenes=None,
+    release: Callable[[], object] | None = None,
+) -> dict:
     """Run the ladder; write ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json`` to ``out``.
 
-    ``transfers``, ``methods`` and ``scenes`` (case names) restrict the study; by default it runs all
-    (``small``: FLIP only, SPQ, CPDI and MPQ, coarser grids).
-    """
-    import jax
+    Needs float64 on (``jaxmpm study`` switches it on).
 
-    jax.config.update("jax_enable_x64", True)
+    Args:
+        out: the output directory (created).
+        small: FLIP only, SPQ, CPDI and MPQ, coarser grids.
+        transfers: labels in ``TRANSFERS`` to run (default: all, or FLIP when ``small``).
+        methods: labels in ``METHODS`` to run (default: all, or SPQ, CPDI and MPQ when ``small``).
+        scenes: case names to run (default: all).
+        release: called after each case, whose compiled programs (one per resolution) are not used
+            again (the command line passes ``jax.clear_caches``).
+
+    Returns:
+        ``runs`` (one row per run) and ``orders`` (one row per scene, method and transfer).
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("convergence")
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     all_cases = [c for c in cases(small) if scenes is None or c.name in scenes]
@@ -218,7 +283,8 @@ def main(out: str, small: bool = False, transfers=None, methods=None, scenes=Non
         for method in methods:
             for transfer in transfers:
                 rows.extend(run_case(case, method, transfer))
-        jax.clear_caches()  # one compiled program per resolution: release them (see tests/conftest.py)
+        if release is not None:
+            release()
     order_rows = orders(rows)
     head = (
         "# Observed orders of convergence\n\n"

@@ -1,5 +1,5 @@
-"""2D and 3D (issue 8): the talk's first step along every axis, the axis-aligned manufactured solution's
-orders, the blast's domain gaps (MPQ against CPDI), and a 100,000-particle 2D run.
+"""2D and 3D: the talk's first step along every axis, the axis-aligned manufactured solution's orders,
+the blast's domain gaps (MPQ against CPDI), and a 100,000-particle 2D run.
 
 ``jaxmpm study multid --out DIR`` writes ``multid.md``, ``multid.json`` and three figures.
 """
@@ -15,16 +15,25 @@ import numpy as np
 import jaxmpm as jm
 from jaxmpm.interpolators.cpdi import parallelogram_corners
 
+from ._runtime import machine, require_float64
+
 BETA, DT = 200.0, 1e-5
-NAMES = ("spq", "gimp", "cpgimp", "cpdi", "mpq")
 
 
 def first_steps(dims=(2, 3)) -> list[dict]:
     """The first step of the gas expansion, ``(F_aa - 1) / (beta dt)`` over all particles and axes:
-    5/8 in boundary cells and 1 inside without artificial cells, 1 everywhere with them."""
+    5/8 in boundary cells and 1 inside without artificial cells, 1 everywhere with them.
+
+    Args:
+        dims: the dimensions (2, 3).
+
+    Returns:
+        One row per dimension, interpolator and artificial-cell setting: the range over boundary and
+        interior particles, and the largest off-diagonal entry.
+    """
     rows = []
     for dim in dims:
-        for name in NAMES:
+        for name in jm.INTERPOLATORS:
             for ac in (0, 1):
                 scene = jm.GasExpansion(cells=3, ppc=2, beta=BETA, dim=dim, pad=3)
                 sol = jm.simulate(scene, jm.INTERPOLATORS[name](), dt=DT, steps=1, artificial_cells=ac)
@@ -48,7 +57,16 @@ def first_steps(dims=(2, 3)) -> list[dict]:
 
 
 def axis_aligned(dim: int, cells_list, names=("spq", "gimp", "cpdi", "mpq")) -> list[dict]:
-    """RMS position error of the axis-aligned solution at a quarter period, ``dt = 0.2 h / c``."""
+    """RMS position error of the axis-aligned solution at a quarter period, ``dt = 0.2 h / c``.
+
+    Args:
+        dim: 2 or 3.
+        cells_list: cells per side, coarse to fine.
+        names: the interpolators (keys of ``jaxmpm.INTERPOLATORS``).
+
+    Returns:
+        One row per interpolator and resolution, with the observed orders (fit and finest pair).
+    """
     rows = []
     for name in names:
         errs = []
@@ -88,7 +106,17 @@ def axis_aligned(dim: int, cells_list, names=("spq", "gimp", "cpdi", "mpq")) -> 
 
 
 def blast(steps: int, every: int, cells: int = 8) -> dict:
-    """The quarter blast with CPDI and MPQ (MUSL, FLIP): corner gaps against time, diagnostics."""
+    """The quarter blast with CPDI and MPQ (MUSL, FLIP): corner gaps against time, diagnostics.
+
+    Args:
+        steps: steps.
+        every: save every this many steps.
+        cells: cells per side of the charge.
+
+    Returns:
+        Per interpolator: times, largest corner gaps (own domains and the parallelograms from x, F),
+        the domains mid-run and at the end, the failure, energies and the parameters.
+    """
     out = {}
     for name in ("cpdi", "mpq"):
         scene = jm.Blast(cells=cells, h=0.5 / cells, pad=3 * cells)
@@ -132,7 +160,15 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
 
 
 def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
-    """A 2D gas expansion of ``cells^2 * 4`` particles (99,856 at 158 cells): compile and run time."""
+    """A 2D gas expansion of ``cells^2 * 4`` particles (99,856 at 158 cells): compile and run time.
+
+    Args:
+        cells: cells per side.
+        steps: steps.
+
+    Returns:
+        One row per interpolator: times, particle-steps per second and the max relative F error.
+    """
     rows = []
     for name in ("spq", "cpdi", "mpq"):
         scene = jm.GasExpansion(dim=2, cells=cells, h=1.0 / cells, pad=4)
@@ -154,24 +190,20 @@ def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
 
 
 def _save(fig, path: pathlib.Path) -> pathlib.Path:
-    import matplotlib.pyplot as plt
-
     fig.tight_layout()
     fig.savefig(path, dpi=130)
-    plt.close(fig)
     return path
 
 
 def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
+
+    from ..plotting import figure
 
     paths = []
     b = result["blast"]
-    fig, axes = plt.subplots(2, 2, figsize=(10, 10), sharex=True, sharey=True)
+    fig = figure(figsize=(10, 10))
+    axes = fig.subplots(2, 2, sharex=True, sharey=True)
     order = [0, 1, 3, 2]  # corners (-,-), (-,+), (+,+), (+,-): around the quadrilateral
     for row, when in enumerate(("mid", "end")):
         for ax, name in zip(axes[row], ("cpdi", "mpq")):
@@ -194,7 +226,8 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     fig.suptitle("Blast (quarter, symmetry planes at x = 0 and y = 0): particle domains")
     paths.append(_save(fig, outdir / "blast_domains.png"))
 
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+    fig = figure(figsize=(6.5, 4))
+    ax = fig.subplots()
     for name, style in (("cpdi", "-"), ("mpq", "--")):
         t = np.asarray(b[name]["t"]) * 1e3
         ax.plot(t, b[name]["gap_own"], style, label=f"{name.upper()}: its own domains")
@@ -208,7 +241,8 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     ax.set_title("Shared corners: MPQ's coincide (0), CPDI's separate")
     paths.append(_save(fig, outdir / "blast_gap.png"))
 
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+    fig = figure(figsize=(6.5, 4))
+    ax = fig.subplots()
     rows = result["axis_aligned_2d"]
     for name in sorted({r["interpolator"] for r in rows}):
         rr = [r for r in rows if r["interpolator"] == name]
@@ -297,14 +331,25 @@ def _markdown(result: dict) -> str:
 
 
 def main(out: str, small: bool = False) -> dict:
-    import jax
+    """Run the study; write ``multid.md``, ``multid.json`` and three figures to ``out``.
 
-    jax.config.update("jax_enable_x64", True)
+    Needs float64 on (``jaxmpm study`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: a reduced version (2D only, coarser grids, fewer steps).
+
+    Returns:
+        ``first_step``, ``axis_aligned_2d``, ``axis_aligned_3d``, ``blast``, ``large_2d``, ``machine``
+        and ``wall_s``.
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("multid")
     t0 = time.perf_counter()
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
-    from ..bench import machine
-
     result = dict(
         first_step=first_steps((2,) if small else (2, 3)),
         axis_aligned_2d=axis_aligned(2, (8, 16) if small else (8, 16, 32, 64)),

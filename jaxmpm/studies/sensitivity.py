@@ -18,6 +18,7 @@ import numpy as np
 import jaxmpm as jm
 
 from ._methods import METHODS
+from ._runtime import require_float64
 
 DT = 1.0e-5
 STEPS = 125  # t = 0.00125, the talk's later time
@@ -26,7 +27,20 @@ STEPS = 125  # t = 0.00125, the talk's later time
 def sweep(
     method: str, artificial_cells: int, param: str, values, cells: int = 8, ordering: str = "usl"
 ) -> dict:
-    """Error and d(error)/d(param) at each value, in one compiled, vmapped call."""
+    """Error and d(error)/d(param) at each value, in one compiled, vmapped call.
+
+    Args:
+        method: the interpolator's label (``METHODS``).
+        artificial_cells: layers of artificial cells.
+        param: ``"beta"`` or ``"h"``.
+        values: the values of ``param``.
+        cells: cells of the bar.
+        ordering: ``"usl"`` or ``"musl"``.
+
+    Returns:
+        ``method``, ``artificial_cells``, ``param``, ``values``, ``error`` and ``derivative`` (NaN
+        where the run broke down), ``status`` and ``wall_s``.
+    """
     import jax
     import jax.numpy as jnp
 
@@ -62,6 +76,17 @@ def sweep(
 
 
 def run_all(betas, hs, cells: int = 8, ordering: str = "usl") -> list[dict]:
+    """Sweep beta and h for every interpolator, with and without artificial cells.
+
+    Args:
+        betas: values of beta (at the default h).
+        hs: values of h (at the default beta).
+        cells: cells of the bar.
+        ordering: ``"usl"`` or ``"musl"``.
+
+    Returns:
+        The ``sweep`` results.
+    """
     out = []
     for method in METHODS:
         for ac in (0, 1):
@@ -71,10 +96,19 @@ def run_all(betas, hs, cells: int = 8, ordering: str = "usl") -> list[dict]:
 
 
 def figure(results: list[dict], param: str, path, unit: str, ordering: str = "usl") -> None:
-    from .. import plotting
+    """The error and its derivative against ``param``, one curve per interpolator, as a PNG.
 
-    plt = plotting.pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    Args:
+        results: the ``sweep`` results.
+        param: ``"beta"`` or ``"h"``.
+        path: where to write the PNG.
+        unit: the derivative's unit.
+        ordering: the ordering the runs used, for the title.
+    """
+    from ..plotting import figure as new_figure
+
+    fig = new_figure(figsize=(11, 4))
+    axes = fig.subplots(1, 2)
     colours = dict(zip(METHODS, ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")))
     for r in results:
         if r["param"] != param:
@@ -96,14 +130,25 @@ def figure(results: list[dict], param: str, path, unit: str, ordering: str = "us
     )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def main(out: str, small: bool = False, ordering: str = "usl") -> list[dict]:
-    """Write ``sensitivity[_musl].csv`` and ``sensitivity_{beta,h}[_musl].png`` to ``out``."""
-    import jax
+    """Write ``sensitivity[_musl].csv`` and ``sensitivity_{beta,h}[_musl].png`` to ``out``.
 
-    jax.config.update("jax_enable_x64", True)
+    Needs float64 on (``experiments/sensitivity.py`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: fewer values of beta and h, 4 cells instead of 8.
+        ordering: ``"usl"`` or ``"musl"``.
+
+    Returns:
+        The ``sweep`` results.
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("sensitivity")
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     betas = np.linspace(50.0, 400.0, 4 if small else 15)

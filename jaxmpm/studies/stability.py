@@ -22,6 +22,7 @@ import csv
 import json
 import pathlib
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -29,6 +30,7 @@ import jaxmpm as jm
 from jaxmpm import status as st_bits
 
 from ._methods import METHODS
+from ._runtime import require_float64
 
 TOL = 1e-2
 CFLS = (0.1, 0.25, 0.5, 1.0, 1.5)
@@ -47,7 +49,14 @@ SHORT = {
 
 
 def cases(small: bool = False) -> list[dict]:
-    """The rows of the map: ``label`` and the scene's ``beta, gamma, P0, p_atm`` and ``t_end``."""
+    """The rows of the map.
+
+    Args:
+        small: three targets and one pressure ratio, no gamma sweep.
+
+    Returns:
+        One dict per case: ``label`` and the scene's ``beta``, ``gamma``, ``P0``, ``p_atm`` and ``t_end``.
+    """
     base = dict(gamma=1.4, P0=2.0 * P_ATM, p_atm=P_ATM)
     rows = []
     targets = (2.0, 100.0, 0.05) if small else (2.0, 10.0, 100.0, 0.5, 0.2, 0.05)
@@ -76,7 +85,17 @@ def _max_steps(members, h) -> int:
 
 
 def sweep(method: str, artificial_cells: int, members: list[dict]) -> list[dict]:
-    """Run every member in one vmapped, compiled call; return one result dict per member."""
+    """Run every member in one vmapped, compiled call.
+
+    Args:
+        method: the interpolator's label (``METHODS``).
+        artificial_cells: layers of artificial cells.
+        members: cases with their ``cfl`` (``cases`` rows with a CFL number).
+
+    Returns:
+        One result per member: the member, its status, failure step and particle, steps, time, max
+        relative F error, whether its state is finite, and its ``verdict``.
+    """
     import jax
     import jax.numpy as jnp
 
@@ -129,7 +148,15 @@ def sweep(method: str, artificial_cells: int, members: list[dict]) -> list[dict]
 
 
 def classify(r: dict) -> str:
-    """``accurate``, ``inaccurate``, or ``broken at step k on particle p: quantity``."""
+    """The verdict on one run.
+
+    Args:
+        r: a ``sweep`` result.
+
+    Returns:
+        ``accurate``, ``inaccurate``, ``broken at step k on particle p: quantity``, or
+        ``SILENT NON-FINITE`` (a non-finite result without a status, never expected).
+    """
     if r["status"]:
         what = "; ".join(st_bits.describe(int(r["status"])))
         who = f"particle {r['fail_particle']}" if r["fail_particle"] >= 0 else "the run"
@@ -149,15 +176,22 @@ def _code(r: dict) -> str:
 
 
 def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
+    """The map as a PNG: one panel per interpolator and artificial-cell setting, cases against CFL.
+
+    Args:
+        results: the ``sweep`` results.
+        labels: the cases, top to bottom.
+        path: where to write the PNG.
+    """
     from matplotlib.colors import ListedColormap
 
-    from ..plotting import pyplot
+    from ..plotting import figure as new_figure
 
-    plt = pyplot()
     panels = list(dict.fromkeys((r["method"], r["artificial_cells"]) for r in results))
     cols = 2
     rows = (len(panels) + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(6.0 * cols, 0.42 * len(labels) * rows + 1.5), squeeze=False)
+    fig = new_figure(figsize=(6.0 * cols, 0.42 * len(labels) * rows + 1.5))
+    axes = fig.subplots(rows, cols, squeeze=False)
     cmap = ListedColormap(["#4caf50", "#ffc107", "#e53935"])
     for ax, (method, ac) in zip(axes.flat, panels):
         grid = np.zeros((len(labels), len(CFLS)))
@@ -181,10 +215,18 @@ def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
     )
     fig.tight_layout(rect=(0, 0, 1, 0.985))  # leave the top strip to the title
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def markdown(results: list[dict], labels: list[str]) -> str:
+    """The map as markdown tables, one per interpolator and artificial-cell setting.
+
+    Args:
+        results: the ``sweep`` results.
+        labels: the cases, top to bottom.
+
+    Returns:
+        The tables; each cell the final error, or the first failed quantity and its step.
+    """
     lines = []
     for method, ac in dict.fromkeys((r["method"], r["artificial_cells"]) for r in results):
         lines.append(f"**{method}, {'artificial cells' if ac else 'no artificial cells'}**\n")
@@ -204,9 +246,24 @@ def markdown(results: list[dict], labels: list[str]) -> str:
     return "\n".join(lines)
 
 
-def run_all(small: bool = False, methods=None, artificial_cells=(0, 1)) -> tuple[list[dict], list[str]]:
-    import jax
+def run_all(
+    small: bool = False,
+    methods=None,
+    artificial_cells=(0, 1),
+    release: Callable[[], object] | None = None,
+) -> tuple[list[dict], list[str]]:
+    """Sweep every case and CFL number for each interpolator, with and without artificial cells.
 
+    Args:
+        small: the reduced map (fewer cases; SPQ and MPQ only).
+        methods: labels in ``METHODS`` (default: all, or SPQ and MPQ when ``small``).
+        artificial_cells: the artificial-cell settings.
+        release: called after each interpolator's sweeps, whose compiled programs are not used again
+            (the command line passes ``jax.clear_caches``).
+
+    Returns:
+        ``(results, labels)``: one dict per run, and the cases in order.
+    """
     rows = cases(small)
     labels = [r["label"] for r in rows]
     members = [dict(r, cfl=c) for r in rows for c in CFLS]
@@ -215,18 +272,31 @@ def run_all(small: bool = False, methods=None, artificial_cells=(0, 1)) -> tuple
     for method in methods:
         for ac in artificial_cells:
             results.extend(sweep(method, ac, members))
-        jax.clear_caches()
+        if release is not None:
+            release()
     return results, labels
 
 
-def main(out: str, small: bool = False) -> dict:
-    """Run the sweep; write ``stability.{md,csv,json,png}`` to ``out``."""
-    import jax
+def main(out: str, small: bool = False, release: Callable[[], object] | None = None) -> dict:
+    """Run the sweep; write ``stability.{md,csv,json,png}`` to ``out``.
 
-    jax.config.update("jax_enable_x64", True)
+    Needs float64 on (``jaxmpm study`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: the reduced map.
+        release: as for ``run_all``.
+
+    Returns:
+        ``results`` (one dict per run) and ``labels`` (the cases).
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("stability")
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
-    results, labels = run_all(small)
+    results, labels = run_all(small, release=release)
     counts = {v: 0 for v in ("accurate", "inaccurate", "broken")}
     for r in results:
         counts[r["verdict"].split(" ")[0]] = counts.get(r["verdict"].split(" ")[0], 0) + 1

@@ -18,6 +18,7 @@ import numpy as np
 import jaxmpm as jm
 
 from ._methods import METHODS
+from ._runtime import require_float64
 
 TIMES = (1.0e-4, 1.25e-3)
 DT = 1.0e-5
@@ -40,6 +41,18 @@ COLUMNS = (
 
 @dataclasses.dataclass
 class Run:
+    """One run of the study.
+
+    Attributes:
+        method: the interpolator's label (``METHODS``).
+        artificial_cells: layers of artificial cells (0 or 1).
+        beta: the velocity gradient (1/s).
+        scene: the scene that ran.
+        solution: its solution, every step saved.
+        wall_s: run time (s).
+        compile_s: compile time (s; 0 where the run compiled for an earlier beta was reused).
+    """
+
     method: str
     artificial_cells: int
     beta: float
@@ -50,6 +63,16 @@ class Run:
 
 
 def run_all(betas, cells: int, ppc: int) -> list[Run]:
+    """Run every interpolator, with and without artificial cells, at each beta to the talk's later time.
+
+    Args:
+        betas: velocity gradients (1/s).
+        cells: cells of the bar.
+        ppc: particles per cell.
+
+    Returns:
+        The runs, every step saved.
+    """
     steps = int(round(TIMES[-1] / DT))
     saveat = jm.SaveAt(every=1, fields=("x", "v", "F", "sigma"))
     runs = []
@@ -65,7 +88,15 @@ def run_all(betas, cells: int, ppc: int) -> list[Run]:
 
 
 def state_at(sol: jm.Solution, k: int) -> jm.State:
-    """The saved state at history index ``k`` (steps of DT)."""
+    """The saved state at history index ``k``.
+
+    Args:
+        sol: a solution saved every step.
+        k: the step (``t = k DT``).
+
+    Returns:
+        Its state at step ``k`` (``t``, ``x``, ``v``, ``F`` and ``sigma`` from the history).
+    """
     h = sol.history
     return dataclasses.replace(
         sol.state, t=sol.ts[k], x=h["x"][k], v=h["v"][k], F=h["F"][k], sigma=h["sigma"][k]
@@ -73,6 +104,14 @@ def state_at(sol: jm.Solution, k: int) -> jm.State:
 
 
 def rows(runs: list[Run]) -> list[dict]:
+    """The errors of each run at each of the talk's times (NaN after a breakdown).
+
+    Args:
+        runs: the runs.
+
+    Returns:
+        One row per run and time, with the keys ``COLUMNS``.
+    """
     out = []
     for r in runs:
         for t in TIMES:
@@ -96,6 +135,14 @@ def rows(runs: list[Run]) -> list[dict]:
 
 
 def markdown_table(table: list[dict]) -> str:
+    """The rows as a markdown table.
+
+    Args:
+        table: what ``rows`` returns.
+
+    Returns:
+        The table, one line per row.
+    """
     head = (
         "| method | AC | beta (1/s) | t (s) | max rel F err | boundary | interior | max abs x err (m) "
         "| max abs v err (m/s) | max separation | status | run (ms) | compile (s) |"
@@ -113,6 +160,17 @@ def markdown_table(table: list[dict]) -> str:
 
 
 def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
+    """F, x and v along the bar against the exact solution at each time, and the domain separation
+    over time (at the largest beta), as PNGs.
+
+    Args:
+        runs: the runs.
+        out: the output directory.
+        betas: the velocity gradients, in the order of the colours.
+
+    Returns:
+        The paths written.
+    """
     from .. import plotting
 
     colours = dict(zip(betas, ("tab:blue", "tab:orange", "tab:red", "tab:green", "tab:purple")))
@@ -174,10 +232,21 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
 
 
 def main(out: str, small: bool = False) -> dict:
-    """Run the study and write ``table.md``, ``results.csv``, ``results.json`` and PNG figures to ``out``."""
-    import jax
+    """Run the study and write ``table.md``, ``results.csv``, ``results.json`` and PNG figures to ``out``.
 
-    jax.config.update("jax_enable_x64", True)
+    Needs float64 on (``jaxmpm study`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: one beta and 4 cells instead of three betas and 8 cells.
+
+    Returns:
+        ``table`` (the rows of ``results.csv``) and ``figures`` (the paths written).
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("talk")
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     betas = (200.0,) if small else (100.0, 200.0, 400.0)

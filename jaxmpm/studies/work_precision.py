@@ -1,4 +1,4 @@
-"""Work-precision: each interpolator's error against its run time, across resolutions (issue 4).
+"""Work-precision: each interpolator's error against its run time, across resolutions.
 
 The large-amplitude neo-Hookean manufactured solution (where the interpolators differ most) runs to a
 quarter period with the CFL-limited step at 16 to 1,024 cells (32 to 2,048 particles). Run time is the
@@ -18,16 +18,35 @@ import numpy as np
 import jaxmpm as jm
 
 from ._methods import METHODS
+from ._runtime import require_float64
 
 CFL = 0.5
 COLUMNS = ("method", "cells", "particles", "steps", "x_rms_abs", "F_rms_rel", "wall_s", "compile_s", "status")
 
 
 def scene(cells: int) -> jm.Manufactured:
+    """The large-amplitude neo-Hookean manufactured solution (``A = 0.05``) on ``cells`` cells of [0, 1].
+
+    Args:
+        cells: cells.
+
+    Returns:
+        The scene.
+    """
     return jm.Manufactured(A=0.05, cells=cells, h=1.0 / cells)
 
 
 def run(method: str, cells: int, repeats: int = 3) -> dict:
+    """Run one interpolator at one resolution to a quarter period, keeping the best run time.
+
+    Args:
+        method: the interpolator's label (``METHODS``).
+        cells: cells.
+        repeats: calls of the compiled run.
+
+    Returns:
+        One row with the keys ``COLUMNS`` (errors NaN after a breakdown).
+    """
     import jax
 
     sc = scene(cells)
@@ -56,6 +75,14 @@ def run(method: str, cells: int, repeats: int = 3) -> dict:
 
 
 def markdown(rows: list[dict]) -> str:
+    """The rows as a markdown table.
+
+    Args:
+        rows: the ``run`` results.
+
+    Returns:
+        The table.
+    """
     lines = [
         "| method | cells | particles | steps | x RMS err | F RMS rel err | run (ms) | compile (s) "
         "| status |",
@@ -70,10 +97,16 @@ def markdown(rows: list[dict]) -> str:
 
 
 def figure(rows: list[dict], path: pathlib.Path) -> None:
-    from ..plotting import pyplot
+    """Error against run time, one curve per interpolator, as a PNG.
 
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    Args:
+        rows: the ``run`` results.
+        path: where to write the PNG.
+    """
+    from ..plotting import figure as new_figure
+
+    fig = new_figure(figsize=(6.5, 4.5))
+    ax = fig.subplots()
     for method in dict.fromkeys(r["method"] for r in rows):
         rs = [r for r in rows if r["method"] == method and np.isfinite(r["x_rms_abs"])]
         ax.loglog([r["wall_s"] for r in rs], [r["x_rms_abs"] for r in rs], "o-", label=method)
@@ -84,14 +117,26 @@ def figure(rows: list[dict], path: pathlib.Path) -> None:
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def main(out: str, small: bool = False) -> dict:
-    """Run the study; write ``work_precision.{md,csv,json,png}`` to ``out``."""
+    """Run the study; write ``work_precision.{md,csv,json,png}`` to ``out``.
+
+    Needs float64 on (``jaxmpm study`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: 16 to 64 cells instead of 16 to 1,024.
+
+    Returns:
+        ``rows``: one dict per interpolator and resolution.
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("work-precision")
     import jax
 
-    jax.config.update("jax_enable_x64", True)
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     resolutions = (16, 32, 64) if small else (16, 32, 64, 128, 256, 512, 1024)

@@ -1,16 +1,20 @@
-"""Throughput benchmark of the 1D step (issue 6): ``jaxmpm bench`` and ``experiments/bench.py``.
+"""Throughput of the step: ``jaxmpm bench`` (from a source checkout) and ``experiments/bench.py``.
 
 Million particle-steps per second of a whole ``simulate`` for each interpolator and of one jitted
 ``step`` called from Python, at 1k to 1M particles, in float32 and float64, compile time measured
 apart, next to the same algorithm written directly in NumPy and plain JAX, and, when the packages
-are installed (``pip install jaxmpm[bench]``), as Taichi and Warp kernels (``jaxmpm._baselines``).
+are installed (``pip install jaxmpm[bench]``), as Taichi and Warp kernels (``benchmarks._baselines``).
 Also the reverse-mode cost (``jax.grad`` through the checkpointed loop: time against the forward
 run, XLA's buffer bytes against the step count) and ensemble throughput per member.
 
-Each float type runs in its own process (x64 is switched on at start-up, never mid-run); everything
-in one invocation runs on the same machine, so compare ratios. The problem is ``GasExpansion``
-(``beta = 200 /s``, ``P0 = 2e5 Pa``, two particles per cell on [0, 1], ``dt = 0.2 h / (c0 + beta)``)
-with FLIP and USL; jaxmpm runs with all its checks on (CFL, F > 0, finite state, grid bounds).
+Each float type runs in its own process (``python -m benchmarks.bench --worker JSON``), which
+switches x64 on or off at its start, never mid-run; everything in one invocation runs on the same
+machine, so compare ratios. The problem is ``GasExpansion`` (``beta = 200 /s``, ``P0 = 2e5 Pa``,
+two particles per cell on [0, 1], ``dt = 0.2 h / (c0 + beta)``) with FLIP and USL; jaxmpm runs with
+all its checks on (CFL, F > 0, finite state, grid bounds).
+
+Importing this module changes no JAX configuration; ``worker`` (the body of a benchmark process)
+does.
 """
 
 from __future__ import annotations
@@ -26,23 +30,48 @@ import subprocess
 import sys
 import time
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxmpm as jm
+from jaxmpm.status import NONFINITE
+
 from ._baselines import BASELINES, PROBLEM, layout
-from .status import NONFINITE
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+"""The source checkout: ``benchmarks/`` and ``jaxmpm/`` beside each other."""
 
 SIZES = (1_000, 8_000, 64_000, 256_000, 1_000_000)
-INTERPOLATOR_NAMES = ("spq", "gimp", "cpgimp", "cpdi", "mpq")
 CODES = ("numpy", "jax", "taichi", "warp", "jaxmpm")
 _BASELINE_CODE = {"numpy": "NumPy", "jax": "plain JAX", "taichi": "Taichi", "warp": "Warp"}
 PASSES = 4  # passes over the particle state (x, v, F) a step must make; see ``bandwidth_bound``
 
 
 def steps_for(n: int, steps: int) -> int:
-    """Fewer steps at 1M particles, so a NumPy run stays within seconds."""
+    """The steps of a run of ``n`` particles: a quarter from 500k particles up (at least 10), so that
+    a NumPy run stays within seconds.
+
+    Args:
+        n: particles.
+        steps: the steps asked for.
+
+    Returns:
+        The steps to run.
+    """
     return steps if n < 500_000 else max(10, steps // 4)
 
 
 def available(code: str) -> bool:
-    """Whether an optional reference code (``taichi``, ``warp``) is installed."""
+    """Whether a code can run here: ``taichi`` and ``warp`` only when installed, the others always.
+
+    Args:
+        code: a name in ``CODES``.
+
+    Returns:
+        ``True`` when it can run.
+    """
     if code not in ("taichi", "warp"):
         return True
     import importlib.util
@@ -51,8 +80,6 @@ def available(code: str) -> bool:
 
 
 def _scene(n: int, dim: int = 1):
-    import jaxmpm as jm
-
     if dim == 2:  # a square of k x k cells, 2 x 2 particles each, on a unit square
         k = round(math.sqrt(n // 4))
         return jm.GasExpansion(cells=k, h=1.0 / k, pad=4, dim=2, **PROBLEM), 0.1 / (k * 600.0)
@@ -61,12 +88,19 @@ def _scene(n: int, dim: int = 1):
 
 
 def jaxmpm_simulate(name: str, n: int, steps: int, dim: int = 1):
-    """``(compile_s, run_s, F_mean, status)`` of one ``jm.simulate`` with interpolator ``name`` (in 2D:
-    the gas expansion on a square, a CFL number of about 0.1)."""
-    import jax.numpy as jnp
+    """One ``jm.simulate_timed`` of the benchmark's problem (in 2D: the gas expansion on a square, a
+    CFL number of about 0.1).
 
-    import jaxmpm as jm
+    Args:
+        name: the interpolator (a key of ``jaxmpm.INTERPOLATORS``).
+        n: particles.
+        steps: steps.
+        dim: 1 or 2.
 
+    Returns:
+        ``(compile_s, run_s, F_mean, status)``: compile time, run time, the mean final ``F`` and the
+        run's status bits.
+    """
     scene, dt = _scene(n, dim)
     sol, compile_s, run_s = jm.simulate_timed(
         scene, jm.INTERPOLATORS[name](), dt=dt, steps=steps, throw=False
@@ -75,14 +109,18 @@ def jaxmpm_simulate(name: str, n: int, steps: int, dim: int = 1):
 
 
 def jaxmpm_step(name: str, n: int, steps: int):
-    """``(compile_s, run_s, F_mean, status)`` of ``steps`` calls of one jitted ``jm.step`` from Python
-    (what a user's own loop costs: one dispatch a step)."""
-    import equinox as eqx
-    import jax
-    import jax.numpy as jnp
+    """``steps`` calls of one jitted ``jm.step`` from Python (what a user's own loop costs: one
+    dispatch a step).
 
-    import jaxmpm as jm
+    Args:
+        name: the interpolator (a key of ``jaxmpm.INTERPOLATORS``).
+        n: particles.
+        steps: steps.
 
+    Returns:
+        ``(compile_s, run_s, F_mean, status)``: compile time, run time, the mean final ``F`` and the
+        run's status bits.
+    """
     scene, dt = _scene(n)
     model = jm.Model(scene, jm.INTERPOLATORS[name](), jm.FLIP())
     s = jm.setup(model)
@@ -100,11 +138,17 @@ def jaxmpm_step(name: str, n: int, steps: int):
 
 
 def reverse_objective(steps: int, checkpoint):
-    """``beta -> final RMS relative F error`` of the reverse-mode problem (also that of
-    ``experiments/grad_memory.py``): the gas expansion with 1,000 particles (500 cells, ``h = 2 mm``),
-    MPQ with artificial cells, ``dt = 0.1 h / c0``, ``steps`` steps."""
-    import jaxmpm as jm
+    """The objective of the reverse-mode problem (also that of ``experiments/grad_memory.py``): the gas
+    expansion with 1,000 particles (500 cells, ``h = 2 mm``), MPQ with artificial cells,
+    ``dt = 0.1 h / c0``.
 
+    Args:
+        steps: steps of the run.
+        checkpoint: ``simulate``'s ``checkpoint`` (``True``: bounded-memory reverse mode).
+
+    Returns:
+        ``beta -> the final RMS relative F error``.
+    """
     h = 0.002
     dt = 0.1 * h / (1.4 * 2.0e5) ** 0.5
 
@@ -117,7 +161,14 @@ def reverse_objective(steps: int, checkpoint):
 
 
 def xla_bytes(compiled) -> int:
-    """XLA's buffer account of a compiled computation: arguments, outputs and temporaries."""
+    """XLA's buffer account of a compiled computation.
+
+    Args:
+        compiled: a compiled computation (``jax.jit(f).lower(...).compile()``).
+
+    Returns:
+        The bytes of its arguments, outputs and temporaries.
+    """
     m = compiled.memory_analysis()
     return int(m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes)
 
@@ -127,10 +178,14 @@ def reverse_mode(step_counts=(250, 1_000, 4_000)) -> list[dict]:
     ``reverse_objective`` at ``beta = 2 /s``, differentiated in ``beta``. ``xla_bytes`` of each
     compiled computation measures memory; plain (uncheckpointed) reverse mode is compiled for its
     account only.
-    """
-    import jax
-    import jax.numpy as jnp
 
+    Args:
+        step_counts: the step counts to measure.
+
+    Returns:
+        One row per step count: compile time and ``xla_bytes`` of each mode, run times of the forward
+        and checkpointed reverse runs, and their ratio ``reverse_over_forward``.
+    """
     rows = []
     for steps in step_counts:
         beta = jnp.asarray(2.0)
@@ -155,13 +210,17 @@ def reverse_mode(step_counts=(250, 1_000, 4_000)) -> list[dict]:
 
 
 def ensemble_throughput(n: int = 1_000, members: int = 256, steps: int = 100, name: str = "mpq") -> dict:
-    """One ``jm.ensemble`` of ``members`` values of ``beta`` against one ``jm.simulate``: particle-steps
-    per second per member, and the ensemble's time per member against one run's."""
-    import jax
-    import numpy as np
+    """One ``jm.ensemble`` of ``members`` values of ``beta`` against one ``jm.simulate``.
 
-    import jaxmpm as jm
+    Args:
+        n: particles.
+        members: ensemble members (``beta`` from half to all of the problem's).
+        steps: steps.
+        name: the interpolator.
 
+    Returns:
+        Times, particle-steps per second per member and of one run alone, and the failed members.
+    """
     scene, dt = _scene(n)
     vary = {"beta": np.linspace(0.5, 1.0, members) * PROBLEM["beta"]}
     jax.block_until_ready(jm.ensemble(scene, jm.INTERPOLATORS[name](), vary, dt=dt, steps=steps).solution)
@@ -185,9 +244,14 @@ def ensemble_throughput(n: int = 1_000, members: int = 256, steps: int = 100, na
 
 
 def copy_bandwidth(nbytes: int = 256 * 2**20) -> float:
-    """Memory bandwidth in bytes per second of a large NumPy copy (read + write), best of 5."""
-    import numpy as np
+    """Memory bandwidth of a large NumPy copy (read + write), best of 5.
 
+    Args:
+        nbytes: the size of the copied array.
+
+    Returns:
+        Bytes per second.
+    """
     a = np.ones(nbytes // 8)
     b = np.empty_like(a)
     best = float("inf")
@@ -201,14 +265,39 @@ def copy_bandwidth(nbytes: int = 256 * 2**20) -> float:
 def bandwidth_bound(bytes_per_s: float, dtype: str) -> float:
     """Million particle-steps per second a step cannot beat on this memory: ``PASSES`` passes over
     the particle state ``x, v, F`` (P2G reads it; G2P reads it again and writes it; the grid, about
-    0.6 nodes per particle with five fields, moves about one more pass)."""
+    0.6 nodes per particle with five fields, moves about one more pass).
+
+    Args:
+        bytes_per_s: the memory bandwidth (``copy_bandwidth``).
+        dtype: ``"f32"`` or ``"f64"``.
+
+    Returns:
+        The bound, million particle-steps per second.
+    """
     item = 4 if dtype == "f32" else 8
     return bytes_per_s / (PASSES * 3 * item) / 1e6
 
 
 def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, sizes_2d=()) -> dict:
-    import jax
+    """The benchmark of one float type: the body of its own process (see ``run``).
 
+    As the benchmark's entry point it sets JAX's configuration: x64 on exactly for ``"f64"``, and
+    JAX's caches dropped after each size (every compiled XLA CPU program holds memory maps, of which
+    a process has a bounded number).
+
+    Args:
+        dtype: ``"f32"`` or ``"f64"``.
+        sizes: particle counts of the 1D runs.
+        steps: steps per run (fewer from 500k particles up: ``steps_for``).
+        codes: among ``CODES``.
+        interpolators: jaxmpm's interpolators (names in ``jaxmpm.INTERPOLATORS``).
+        extras: also the reverse-mode (float64 only) and ensemble measurements.
+        sizes_2d: particle counts of jaxmpm's 2D runs.
+
+    Returns:
+        ``rows`` (one per code and size), ``numpy_with_fold``, and with ``extras`` ``reverse`` and
+        ``ensemble``.
+    """
     jax.config.update("jax_enable_x64", dtype == "f64")
     rows = []
 
@@ -273,6 +362,11 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, si
 
 
 def machine() -> str:
+    """The machine, in one line.
+
+    Returns:
+        The processor, its core count and the operating system.
+    """
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -287,11 +381,28 @@ def run(
     steps: int = 100,
     dtypes=("f32", "f64"),
     codes=CODES,
-    interpolators=INTERPOLATOR_NAMES,
+    interpolators=tuple(jm.INTERPOLATORS),
     extras: bool = True,
     sizes_2d=(),
 ) -> dict:
-    """Run the benchmark, one subprocess per float type; returns rows, extras and the machine."""
+    """Run the benchmark, one process per float type.
+
+    Args:
+        sizes: particle counts of the 1D runs (even: two particles per cell).
+        steps: steps per run.
+        dtypes: ``"f32"``, ``"f64"`` or both.
+        codes: among ``CODES``.
+        interpolators: jaxmpm's interpolators (names in ``jaxmpm.INTERPOLATORS``).
+        extras: also the reverse-mode and ensemble measurements.
+        sizes_2d: particle counts of jaxmpm's 2D runs (``4 k^2``).
+
+    Returns:
+        The result: ``date``, ``machine``, ``versions``, ``copy_bandwidth_GBps``, the bandwidth
+        bounds, ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
+
+    Raises:
+        RuntimeError: a benchmark process failed (with the end of its stderr).
+    """
     result = dict(
         date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         machine=machine(),
@@ -316,8 +427,9 @@ def run(
             extras=extras,
             sizes_2d=list(sizes_2d),
         )
-        cmd = [sys.executable, "-m", "jaxmpm.bench", "--worker", json.dumps(spec)]
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
+        cmd = [sys.executable, "-m", "benchmarks.bench", "--worker", json.dumps(spec)]
+        path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=path))
         if proc.returncode != 0:
             raise RuntimeError(f"the {dtype} benchmark process failed:\n{proc.stderr[-4000:]}")
         part = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -333,7 +445,15 @@ def agreement(rows, numpy_with_fold=()) -> dict:
     algorithm, so they agree to round-off and a wrong kernel shows), and of ``jaxmpm spq`` from the
     NumPy code with jaxmpm's fold of force off empty nodes (``numpy_spq(fold=True)``: the same
     method exactly). ``jaxmpm spq`` against the reference codes' standard algorithm differs by
-    that fold, a real difference while the free end enters a new cell."""
+    that fold, a real difference while the free end enters a new cell.
+
+    Args:
+        rows: the benchmark's rows.
+        numpy_with_fold: the mean final F of the NumPy code with the fold, per dtype and size.
+
+    Returns:
+        ``{dtype: {group: largest relative difference}}`` over the healthy runs.
+    """
     out = {}
     for dtype in sorted({r["dtype"] for r in rows}):
         worst = {"reference codes": 0.0, "jaxmpm spq vs NumPy with the fold": 0.0}
@@ -374,7 +494,15 @@ def _versions() -> dict:
 
 
 def table(result: dict) -> str:
-    """Markdown: million particle-steps per second (compile s) per code and size, per dtype."""
+    """The result as markdown tables.
+
+    Args:
+        result: what ``run`` returns.
+
+    Returns:
+        Million particle-steps per second (compile s) per code and size, per dtype, then the
+        reverse-mode, ensemble and agreement measurements.
+    """
     rows = result["rows"]
     lines = [
         f"Measured {result['date']} on {result['machine']}; "
@@ -463,7 +591,16 @@ def table(result: dict) -> str:
 
 
 def write(result: dict, out_dir: str | os.PathLike) -> list[pathlib.Path]:
-    """``bench.csv`` (the throughput rows), ``bench.json`` (everything) and ``bench.md`` (the tables)."""
+    """Write ``bench.csv`` (the throughput rows), ``bench.json`` (everything) and ``bench.md`` (the
+    tables).
+
+    Args:
+        result: what ``run`` returns.
+        out_dir: the directory (created).
+
+    Returns:
+        The three paths.
+    """
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / "bench.csv", out / "bench.json", out / "bench.md"]

@@ -1,5 +1,5 @@
 """The benchmark's reference codes: one 1D MPM algorithm written directly in NumPy, plain JAX,
-Taichi and Warp (issue 6).
+Taichi and Warp.
 
 All four run the same problem as ``jm.GasExpansion`` with ``jm.SPQ()``, FLIP and USL: linear hats,
 the adiabatic gas, the exact traction ``-/+ sigma(t)`` at two boundary points that move with the grid
@@ -21,7 +21,15 @@ PROBLEM = dict(beta=200.0, P0=2.0e5, gamma=1.4, p_atm=1.0e5, rho0=1.0)
 
 
 def layout(n: int) -> dict:
-    """Grid and step of the ``n``-particle problem: two particles per cell on ``[0, 1]``."""
+    """Grid and step of the ``n``-particle problem: two particles per cell on ``[0, 1]``.
+
+    Args:
+        n: particles (even).
+
+    Returns:
+        ``cells``, ``h``, ``pad``, ``nodes``, ``x_min`` (the grid's first node), ``dt``
+        (``0.2 h / (c0 + beta)``), ``m`` and ``V0`` (each particle's mass and volume).
+    """
     cells = n // 2
     h = 1.0 / cells
     pad = cells // 8 + 4
@@ -45,8 +53,16 @@ def _initial(n: int, dtype):
 
 
 def boundary_stress(t: float) -> float:
-    """``sigma(t)`` of the exact solution; the traction is ``-sigma`` at the left end, ``+sigma`` at
-    the right (as ``GasExpansion.traction``)."""
+    """The exact solution's stress at time ``t``.
+
+    The traction is ``-sigma`` at the left end, ``+sigma`` at the right (as ``GasExpansion.traction``).
+
+    Args:
+        t: time (s).
+
+    Returns:
+        ``sigma(t) = -(P0 (1 + beta t)^-gamma - p_atm)``.
+    """
     P = PROBLEM
     return -(P["P0"] * (1.0 + P["beta"] * t) ** -P["gamma"] - P["p_atm"])
 
@@ -58,6 +74,16 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
     as empty, and force on an empty node moves to its neighbour with mass (``_step.fold_massless``).
     The benchmark times the standard algorithm (``fold=False``); ``fold=True`` is the check that
     ``jaxmpm spq`` computes exactly this method.
+
+    Args:
+        n: particles (two per cell).
+        steps: steps to run.
+        dtype: ``"f32"`` or ``"f64"``.
+        fold: also fold the force off empty nodes, as jaxmpm does.
+
+    Returns:
+        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
+        mean final ``F``; with ``fold``, NaN once ``F`` is not finite or not positive.
     """
     f = np.float32 if dtype == "f32" else np.float64
     L, x, v, F = _initial(n, f)
@@ -107,7 +133,18 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
 
 
 def plain_jax_spq(n: int, steps: int, dtype: str):
-    """The same algorithm as one ``lax.scan`` with ``.at[].add`` scatters (dtype: the process's)."""
+    """The same algorithm as one ``lax.scan`` with ``.at[].add`` scatters.
+
+    Args:
+        n: particles (two per cell).
+        steps: steps to run.
+        dtype: ``"f32"`` or ``"f64"``; not read: the float type is the process's (float64 exactly
+            when x64 is on).
+
+    Returns:
+        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
+        mean final ``F``.
+    """
     import jax
     import jax.numpy as jnp
 
@@ -264,7 +301,17 @@ def _taichi_kernels(dtype: str):
 
 
 def taichi_spq(n: int, steps: int, dtype: str):
-    """Taichi CPU kernels (parallel loops with atomics), three launches a step."""
+    """Taichi CPU kernels (parallel loops with atomics), three launches a step.
+
+    Args:
+        n: particles (two per cell).
+        steps: steps to run.
+        dtype: ``"f32"`` or ``"f64"``. Taichi runs one float type per process.
+
+    Returns:
+        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
+        mean final ``F``.
+    """
     ti, p2g, grid, g2p = _taichi_kernels(dtype)
     f = np.float32 if dtype == "f32" else np.float64
     tf = ti.f32 if dtype == "f32" else ti.f64
@@ -430,7 +477,17 @@ def _warp_kernels(dtype: str):
 
 
 def warp_spq(n: int, steps: int, dtype: str):
-    """Warp CPU kernels, three launches a step."""
+    """Warp CPU kernels, three launches a step.
+
+    Args:
+        n: particles (two per cell).
+        steps: steps to run.
+        dtype: ``"f32"`` or ``"f64"``.
+
+    Returns:
+        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
+        mean final ``F``.
+    """
     wp, T, p2g, grid, g2p = _warp_kernels(dtype)
     f = np.float32 if dtype == "f32" else np.float64
     L, x0, v0, F0 = _initial(n, f)

@@ -1,0 +1,5 @@
+"""jaxmpm's benchmark against reference codes written in NumPy, plain JAX, Taichi and Warp.
+
+Kept beside the package in a source checkout, not installed: ``jaxmpm bench`` runs it from there.
+``bench`` is the driver (``bench.run``), ``_baselines`` the reference codes.
+"""

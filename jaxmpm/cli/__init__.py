@@ -1,0 +1,54 @@
+"""The ``jaxmpm`` command: ``scenes``, ``run``, ``calibrate``, ``ensemble``, ``resume``, ``bench`` and
+``study``, one module each.
+
+A contract that outside scripts rely on: command names, options, ``name=value`` scene parameters, the
+JSON keys of ``--json``, exit statuses (2: bad input; 3: a run broke down) and the text printed are
+kept stable (extended, never renamed).
+"""
+
+import sys
+
+import jax
+
+from . import bench, calibrate, ensemble, resume, run, scenes, study
+from ._common import Breakdown, Parser, UsageError
+
+_COMMANDS = (scenes, run, calibrate, ensemble, resume, bench, study)  # in the order --help lists them
+
+
+def parser() -> Parser:
+    """The ``jaxmpm`` argument parser, one subparser per command.
+
+    Returns:
+        The parser; its errors raise ``UsageError``.
+    """
+    p = Parser(prog="jaxmpm", description="Differentiable MPM in JAX: SPQ, GIMP, CPDI and MPQ side by side.")
+    subparsers = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for command in _COMMANDS:
+        command.add_parser(subparsers)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxmpm`` console script.
+
+    Switches on float64 before anything is built. Figures are drawn on ``matplotlib.figure.Figure``
+    objects, which need no display backend.
+
+    Args:
+        argv: the arguments after ``jaxmpm`` (default: ``sys.argv[1:]``).
+
+    Returns:
+        The exit status: 0; 2 for bad input (one line on stderr naming it); 3 for a run that broke
+        down (one line on stderr naming the step, the particle and the quantity).
+    """
+    jax.config.update("jax_enable_x64", True)
+    try:
+        args = parser().parse_args(argv)
+        return args.handler(args)
+    except UsageError as e:
+        print(f"jaxmpm: error: {e}", file=sys.stderr)
+        return 2
+    except Breakdown as e:
+        print(e, file=sys.stderr)
+        return 3

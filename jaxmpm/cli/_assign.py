@@ -1,0 +1,173 @@
+"""Values written on the command line, read one way: ``name=value`` assignments (scene parameters,
+``--start``, ``--vary``) and comma-separated lists (``--grad``, ``--fit``, the benchmark's choices).
+
+Every function raises ``UsageError`` with one line naming what was wrong.
+"""
+
+import math
+from collections.abc import Iterable, Iterator, Sequence
+
+import jaxmpm as jm
+
+from ._common import UsageError
+
+
+def split(items: Iterable[str], expected: str) -> Iterator[tuple[str, str]]:
+    """``name=value`` items as ``(name, value)`` pairs, split at the first ``=``, one at a time (so
+    that the first bad item is the one reported, whatever is wrong with it).
+
+    Args:
+        items: the items, e.g. ``["beta=400", "cells=3"]``.
+        expected: the form the items take, for the error (e.g. ``"scene parameters are name=value"``).
+
+    Yields:
+        ``(name, value)``, in order, ``value`` unparsed.
+
+    Raises:
+        UsageError: an item without ``=`` or without a name: ``"{expected}, got {item!r}"``.
+    """
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise UsageError(f"{expected}, got {item!r}")
+        yield name, value
+
+
+def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
+    """The scene ``name`` with the parameters ``items`` (``name=value``), each read as the type of its
+    default: a string, a boolean (``true``/``false``, ``1``/``0``), an integer or a finite number.
+
+    Args:
+        name: a scene name (a key of ``jaxmpm.SCENES``).
+        items: its parameters, e.g. ``["beta=400", "full=true"]``.
+
+    Returns:
+        The scene.
+
+    Raises:
+        UsageError: an unknown scene or parameter, a value of the wrong type, or a value the scene
+            rejects.
+    """
+    if name not in jm.SCENES:
+        raise UsageError(f"unknown scene {name!r}; allowed: {', '.join(sorted(jm.SCENES))}")
+    cls = jm.SCENES[name]
+    defaults = cls.parameters()
+    kwargs = {}
+    for key, raw in split(items, "scene parameters are name=value"):
+        if key not in defaults:
+            raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
+        kwargs[key] = _typed(key, raw, defaults[key])
+    try:
+        return cls(**kwargs)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+
+
+def _typed(key: str, raw: str, default):
+    if isinstance(default, str):
+        return raw
+    if isinstance(default, bool):
+        if raw.lower() not in ("true", "false", "1", "0"):
+            raise UsageError(f"{key} must be true or false, got {raw!r}")
+        return raw.lower() in ("true", "1")
+    if isinstance(default, int):
+        try:
+            return int(raw)
+        except ValueError:
+            raise UsageError(f"{key} must be an integer, got {raw!r}") from None
+    try:
+        value = float(raw)
+    except ValueError:
+        raise UsageError(f"{key} must be a number, got {raw!r}") from None
+    if not math.isfinite(value):
+        raise UsageError(f"{key} must be finite, got {raw}")
+    return value
+
+
+def numbers(text: str, option: str) -> dict[str, float]:
+    """``NAME=VALUE[,NAME=VALUE...]`` as a dict of floats (``--start``).
+
+    Args:
+        text: e.g. ``"gamma=1.4,P0=3e5"``.
+        option: the option, for the error (``"--start"``).
+
+    Returns:
+        ``{name: value}``.
+
+    Raises:
+        UsageError: an item that is not ``NAME=VALUE`` with a number for ``VALUE``.
+    """
+    expected = f"{option} takes NAME=VALUE[,NAME=VALUE...]"
+    out = {}
+    for key, raw in split(comma_list(text), expected):
+        try:
+            out[key] = float(raw)
+        except ValueError:
+            raise UsageError(f"{expected}, got {key + '=' + raw!r}") from None
+    return out
+
+
+def ranges(items: Iterable[str], allowed: Sequence[str]) -> dict[str, tuple[float, float]]:
+    """``NAME=LOW:HIGH`` items as ``{name: (low, high)}`` (``--vary``, repeatable).
+
+    Args:
+        items: e.g. ``["gamma=1.3:1.5", "P0=2e5:4e5"]``.
+        allowed: the names that may vary.
+
+    Returns:
+        The ranges, finite with ``low <= high``.
+
+    Raises:
+        UsageError: an item not of the form ``NAME=LOW:HIGH``, a name not in ``allowed``, bounds that
+            are not numbers, not finite, or in the wrong order.
+    """
+    expected = "--vary takes NAME=LOW:HIGH"
+    out = {}
+    for key, raw in split(items, expected):
+        item = f"{key}={raw}"
+        lo, sep, hi = raw.partition(":")
+        if not sep:
+            raise UsageError(f"{expected}, got {item!r}")
+        if key not in allowed:
+            raise UsageError(
+                f"--vary: {key!r} is not a continuous scene parameter; allowed: {', '.join(allowed)}"
+            )
+        try:
+            out[key] = (float(lo), float(hi))
+        except ValueError:
+            raise UsageError(f"--vary: LOW and HIGH must be numbers, got {item!r}") from None
+        if not all(math.isfinite(v) for v in out[key]) or out[key][0] > out[key][1]:
+            raise UsageError(f"--vary: need finite LOW <= HIGH, got {item!r}")
+    return out
+
+
+def comma_list(text: str) -> list[str]:
+    """The non-empty items of a comma-separated list, as written (``--grad``, ``--fit``, ``--start``).
+
+    Args:
+        text: e.g. ``"beta,h"``.
+
+    Returns:
+        The items, in order.
+    """
+    return [item for item in text.split(",") if item]
+
+
+def choices(text: str, option: str, allowed: Sequence[str]) -> list[str]:
+    """A comma-separated list of choices, spaces around each stripped (the benchmark's options).
+
+    Args:
+        text: e.g. ``"numpy,jaxmpm"``.
+        option: the option, for the error (``"--codes"``).
+        allowed: the choices.
+
+    Returns:
+        The chosen items, in order.
+
+    Raises:
+        UsageError: an empty list or an item not in ``allowed``.
+    """
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    if not items or any(t not in allowed for t in items):
+        raise UsageError(f"{option} must be a comma-separated list among {', '.join(allowed)}; got {text!r}")
+    return items

@@ -1,0 +1,134 @@
+"""What the subcommands share: the argument parser, the two failures with their exit statuses (bad
+input: 2, a run that broke down: 3), and JSON output."""
+
+import argparse
+import json
+import re
+
+import numpy as np
+
+import jaxmpm as jm
+
+
+class UsageError(Exception):
+    """Bad input from the command line: one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one ``UsageError`` line (no usage dump, no traceback).
+
+    argparse takes ``-1e-5`` for an option (its matcher has no exponent); this one reads it as a
+    number, so that the check that follows can say "dt must be > 0", not "expected one argument".
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+    def error(self, message):
+        """Raise ``UsageError(message)`` instead of printing the usage and exiting.
+
+        Args:
+            message: argparse's description of what is wrong.
+
+        Raises:
+            UsageError: always.
+        """
+        raise UsageError(message)
+
+
+class Breakdown(Exception):
+    """A run broke down: exit status 3 and one line naming the step, the particle and the quantities.
+
+    The line is built from ``solution.failure()`` and the last good state, then says what to do next:
+    where the run was saved, or which ``--steps`` or ``--t-end`` reproduces the last good state.
+
+    Args:
+        solution: the ``Solution`` of the failed run (``error.solution`` of a ``SimulationError``).
+        dt: the fixed time step, or ``None`` for a run to an end time (variable steps).
+        saved_in: the file the run was saved to, or ``None``.
+    """
+
+    def __init__(self, solution: jm.Solution, *, dt: float | None, saved_in=None):
+        super().__init__(_line(solution, dt, saved_in))
+
+
+def _line(solution: jm.Solution, dt: float | None, saved_in) -> str:
+    failure = solution.failure()
+    st = solution.state
+    step, p = failure["step"], failure["particle"]
+    when = f"t = {step * dt:.6g}" if dt is not None else f"after t = {float(st.t):.6g}"
+    who = "the run" if p < 0 else f"particle {p} ({_particle(solution, p)} at step {step - 1})"
+    last = int(st.step)
+    if saved_in is not None:
+        hint = f"Everything up to it is saved in {saved_in}."
+    elif dt is not None:
+        hint = f"Rerun with --steps {last} to see the last good state."
+    elif failure["status"] & jm.status.MAX_STEPS:
+        hint = ""
+    else:
+        hint = f"Rerun with --t-end {float(st.t):.9g} to see the last good state."
+    line = (
+        f"jaxmpm: the run broke down at step {step} ({when}): {who}: {' and '.join(failure['quantities'])}. "
+        f"The last good state is step {last}. {hint}"
+    )
+    return line.rstrip()
+
+
+def _particle(solution: jm.Solution, p: int) -> str:
+    """Particle ``p`` in the last good state: ``X``, ``x`` and ``F`` in 1D; vectors and ``det F`` above."""
+    X = np.asarray(solution.body.X[p])
+    x = np.asarray(solution.state.x[p])
+    F = np.asarray(solution.state.F[p])
+    if X.shape[0] == 1:
+        return f"X = {X[0]:.6g}, x = {x[0]:.6g}, F = {F[0, 0]:.6g}"
+    return f"X = {_vector(X)}, x = {_vector(x)}, J = det F = {_det(F):.6g}"
+
+
+def _vector(a) -> str:
+    return "(" + ", ".join(f"{float(c):.6g}" for c in a) + ")"
+
+
+def _det(F) -> float:
+    """``det F`` of one 2x2 or 3x3 matrix by its closed form (the solver's own, term for term)."""
+    if F.shape[0] == 2:
+        return float(F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0])
+    a, b, c = F[0, 0], F[0, 1], F[0, 2]
+    return float(
+        a * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+        - b * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+        + c * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+    )
+
+
+def print_json(obj) -> None:
+    """Print ``obj`` on stdout as one JSON object; floats in shortest round-trip form (full float64).
+
+    Args:
+        obj: a JSON-serialisable object.
+    """
+    print(json.dumps(obj))
+
+
+def floats(a) -> list:
+    """An array as nested lists of Python floats.
+
+    Args:
+        a: an array (or array-like) of any shape.
+
+    Returns:
+        ``a`` as float64 nested lists (a float for a scalar).
+    """
+    return np.asarray(a, dtype=float).tolist()
+
+
+def scalar(x) -> float | None:
+    """A scalar as a Python float, keeping ``None``.
+
+    Args:
+        x: a scalar, or ``None`` (an error the scene does not define).
+
+    Returns:
+        ``float(x)``, or ``None``.
+    """
+    return None if x is None else float(x)

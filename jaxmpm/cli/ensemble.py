@@ -1,0 +1,129 @@
+"""``jaxmpm ensemble``: a batch of parameter sets in one compiled, sharded call."""
+
+import itertools
+import time
+
+import numpy as np
+
+import jaxmpm as jm
+
+from . import _assign
+from ._common import UsageError, print_json
+
+
+def add_parser(subparsers) -> None:
+    """Add the ``ensemble`` subcommand.
+
+    Args:
+        subparsers: the ``jaxmpm`` parser's subparsers.
+    """
+    p = subparsers.add_parser("ensemble", help="run a batch of parameter sets in one compiled, sharded call")
+    p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
+    p.add_argument("params", nargs="*", metavar="name=value", help="fixed scene parameters")
+    p.add_argument("--vary", action="append", required=True, metavar="NAME=LOW:HIGH", help="repeatable")
+    p.add_argument("--members", type=int, required=True, help="members (uniform random in the ranges)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the sample (0)")
+    p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
+    p.add_argument("--transfer", default="flip", choices=list(jm.TRANSFERS))
+    p.add_argument("--artificial-cells", type=int, default=0, metavar="N")
+    p.add_argument("--dt", type=float, help="time step, with --steps (default: run to --t-end)")
+    p.add_argument("--steps", type=int, help="number of steps, with --dt")
+    p.add_argument("--t-end", type=float, metavar="T", help="end time (default: two wave transits, 2 L/c0)")
+    p.add_argument("--cfl", type=float, default=0.5, help="with --t-end: dt = CFL h / max(c + |v|)")
+    p.add_argument("--max-steps", type=int, metavar="N", help="with --t-end (default: 3x an estimate)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(handler=command)
+
+
+def command(args) -> int:
+    """Sample ``--members`` parameter sets uniformly in the ``--vary`` ranges, run them as one ensemble,
+    and print each member's status, failure and result.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit status, 0 (members that broke down are reported, not raised).
+
+    Raises:
+        UsageError: bad input.
+    """
+    scene = _assign.scene(args.scene, args.params)
+    varying = [n for n in jm.sensitivity.continuous_parameters(scene) if n != "dt"]
+    ranges = _assign.ranges(args.vary, varying)
+    if args.members < 1:
+        raise UsageError(f"--members must be an integer >= 1, got {args.members}")
+    rng = np.random.default_rng(args.seed)
+    vary = {k: rng.uniform(lo, hi, args.members) for k, (lo, hi) in ranges.items()}
+    settings = dict(transfer=jm.TRANSFERS[args.transfer](), artificial_cells=args.artificial_cells)
+    if args.dt is not None or args.steps is not None:
+        if args.dt is None or args.steps is None or args.t_end is not None:
+            raise UsageError("give --dt and --steps together, or --t-end (or neither: two wave transits)")
+        timing = dict(dt=args.dt, steps=args.steps)
+    else:  # the fastest member sets the bound: sound speeds at the ranges' corners
+        speeds = []
+        for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in ranges.items()]):
+            try:
+                speeds.append(float(type(scene)(**{**scene.parameter_values(), **dict(corner)}).wave_speed))
+            except ValueError as e:
+                raise UsageError(f"--vary: {e}") from None
+        c_min, c_max = min(speeds), max(speeds)
+        t_end = args.t_end if args.t_end is not None else 2.0 * float(scene.length) / c_min
+        max_steps = args.max_steps or int(3 * t_end * c_max / (args.cfl * float(scene.h))) + 100
+        timing = dict(t_end=t_end, cfl=args.cfl, max_steps=max_steps)
+    t0 = time.perf_counter()
+    try:
+        ens = jm.ensemble(scene, jm.INTERPOLATORS[args.interpolator](), vary, **timing, **settings)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    wall = time.perf_counter() - t0
+    st = ens.solution.state
+    results = []
+    for i in range(args.members):
+        member = ens.member(i)
+        r = dict(
+            params={k: float(v[i]) for k, v in vary.items()}, status=int(ens.status[i]), t=float(st.t[i])
+        )
+        r["steps"] = int(st.step[i])
+        failure = member.failure()
+        if failure is not None:
+            r["failure"] = dict(
+                step=failure["step"], particle=failure["particle"], quantities=failure["quantities"]
+            )
+        if scene.name == "gas-slab":
+            ms = member.state
+            r["x_free"] = float(jm.scenes.gas_slab.free_surface(ms.x, ms.F, ms.corners, member.body))
+        if scene.exact is not None and failure is None:  # a failed member's error says nothing
+            err = jm.errors(
+                type(scene)(**{**scene.parameter_values(), **r["params"]}), member.state, member.body
+            )
+            r["F_max_rel"] = float(err["F_max_rel"])
+        results.append(r)
+    out = dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        members=args.members,
+        devices=ens.devices,
+        ok=int(np.sum(ens.ok)),
+        failed=int(np.sum(~ens.ok)),
+        wall_s=wall,
+        timing={k: float(v) if k != "max_steps" and k != "steps" else int(v) for k, v in timing.items()},
+        results=results,
+    )
+    if args.json:
+        print_json(out)
+        return 0
+    print(
+        f"{args.members} members on {ens.devices} device(s): {out['ok']} ok, {out['failed']} failed, "
+        f"wall_s={wall:.3f}"
+    )
+    for i, r in enumerate(results):
+        extra = f"  x_free={r['x_free']:.6g}" if "x_free" in r else ""
+        extra += f"  F_max_rel={r['F_max_rel']:.3g}" if "F_max_rel" in r else ""
+        fail = (
+            f"  FAILED at step {r['failure']['step']}: {r['failure']['quantities'][0]}"
+            if "failure" in r
+            else ""
+        )
+        print(f"{i:>5} " + " ".join(f"{k}={v:.6g}" for k, v in r["params"].items()) + extra + fail)
+    return 0

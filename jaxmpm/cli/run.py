@@ -1,0 +1,320 @@
+"""``jaxmpm run``: run a scene and report its errors (a table, or one JSON object)."""
+
+import pathlib
+import time
+
+import numpy as np
+
+import jaxmpm as jm
+
+from . import _assign
+from ._common import Breakdown, UsageError, floats, print_json, scalar
+
+
+def add_parser(subparsers) -> None:
+    """Add the ``run`` subcommand.
+
+    Args:
+        subparsers: the ``jaxmpm`` parser's subparsers.
+    """
+    p = subparsers.add_parser("run", help="run a scene and report its errors")
+    p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
+    p.add_argument("params", nargs="*", metavar="name=value", help="scene parameters")
+    p.add_argument(
+        "--interpolator",
+        required=True,
+        choices=list(jm.INTERPOLATORS),
+        help="gimp is uGIMP (l = r0); cpgimp is contiguous-particle GIMP (l = F r0)",
+    )
+    p.add_argument("--artificial-cells", type=int, default=0, metavar="N", help="layers at each free end")
+    p.add_argument("--transfer", default="flip", choices=list(jm.TRANSFERS))
+    p.add_argument(
+        "--ordering",
+        default="usl",
+        choices=["usl", "musl"],
+        help="usl: the talk's (default); musl: re-project nodal velocities before kinematics",
+    )
+    p.add_argument("--dt", type=float, help="time step (> 0), with --steps")
+    p.add_argument("--steps", type=int, help="number of steps (>= 0), with --dt")
+    p.add_argument("--t-end", type=float, metavar="T", help="instead of --dt/--steps: run to time T")
+    p.add_argument("--cfl", type=float, default=0.5, help="with --t-end: dt = CFL h / max(c + |v|) (0.5)")
+    p.add_argument("--max-steps", type=int, metavar="N", help="with --t-end: the bound on the step count")
+    p.add_argument(
+        "--viscosity",
+        nargs="?",
+        const="2.0,0.2",
+        metavar="QUAD,LIN",
+        help="artificial viscosity in compression (default coefficients 2.0,0.2)",
+    )
+    p.add_argument(
+        "--cfl-limit",
+        default="1.0",
+        metavar="X",
+        help="fail a step with dt > X h / max(c + |v|); 'none' disables (default 1.0)",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--vtk", metavar="DIR", help="write ParaView files (particles, grid, .pvd series) to DIR")
+    p.add_argument("--vtk-every", type=int, metavar="K", help="with --vtk: a frame every K steps (steps/10)")
+    p.add_argument("--out", metavar="FILE", help="run in chunks and save the run to FILE (.npz)")
+    p.add_argument("--checkpoint-every", type=int, metavar="N", help="with --out: save every N chunks")
+    p.add_argument("--chunk", type=int, default=1000, metavar="STEPS", help="with --out: steps per chunk")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (with --out)")
+    p.add_argument(
+        "--grad",
+        metavar="NAME[,NAME...]",
+        help="add d(F_rms_rel)/d(NAME) for continuous parameters (scene parameters, h, dt)",
+    )
+    p.set_defaults(handler=command)
+
+
+def command(args) -> int:
+    """Run the scene (in one compiled scan, or in chunks saved to ``--out``) and report it.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit status, 0.
+
+    Raises:
+        UsageError: bad input.
+        Breakdown: the run broke down (after writing the frames of ``--vtk`` up to it).
+    """
+    scene = _assign.scene(args.scene, args.params)
+    if args.cfl_limit.lower() == "none":
+        cfl = None
+    else:
+        try:
+            cfl = float(args.cfl_limit)
+        except ValueError:
+            raise UsageError(f"--cfl-limit must be a number or 'none', got {args.cfl_limit!r}") from None
+    names = None
+    if args.grad is not None:
+        names = _assign.comma_list(args.grad)
+        try:
+            jm.sensitivity.check_names(scene, names)
+        except ValueError as e:
+            raise UsageError(f"--grad: {e}") from None
+    interp = jm.INTERPOLATORS[args.interpolator]()
+    transfer = jm.TRANSFERS[args.transfer]()
+    viscosity = None
+    if args.viscosity is not None:
+        try:
+            quad, lin = (float(c) for c in args.viscosity.split(","))
+            viscosity = jm.ArtificialViscosity(c_quad=quad, c_lin=lin)
+        except ValueError as e:
+            raise UsageError(
+                f"--viscosity must be QUAD,LIN (two numbers >= 0), got {args.viscosity!r}: {e}"
+            ) from None
+    settings = dict(
+        transfer=transfer,
+        artificial_cells=args.artificial_cells,
+        cfl_limit=cfl,
+        ordering=args.ordering,
+        viscosity=viscosity,
+    )
+    if viscosity is not None and args.out is not None:
+        raise UsageError("--viscosity is not saved by --out runs yet; run without --out")
+    if args.t_end is not None:
+        if args.dt is not None or args.steps is not None:
+            raise UsageError(
+                "give either --dt and --steps, or --t-end (with --cfl and --max-steps), not both"
+            )
+        if args.max_steps is None:
+            raise UsageError("--t-end needs --max-steps N (the bound on the number of steps)")
+        if args.out is not None or args.grad is not None:
+            raise UsageError("--out and --grad take fixed steps (--dt and --steps), not --t-end")
+        timing = dict(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps)
+    else:
+        if args.dt is None or args.steps is None:
+            raise UsageError("give --dt and --steps, or --t-end and --max-steps")
+        timing = dict(dt=args.dt, steps=args.steps)
+    if args.checkpoint_every is not None and args.out is None:
+        raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
+    if args.vtk_every is not None and args.vtk is None:
+        raise UsageError("--vtk-every needs --vtk DIR to write the frames to")
+    if args.vtk is not None:
+        if args.out is not None:
+            raise UsageError("--vtk writes a run's saved frames; it does not combine with --out")
+        every = args.vtk_every if args.vtk_every is not None else max(1, (args.steps or args.max_steps) // 10)
+        if every < 1:
+            raise UsageError(f"--vtk-every must be an integer >= 1, got {every}")
+        fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
+        settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
+    try:
+        if args.out is None:
+            try:
+                sol, compile_s, wall_s = jm.simulate_timed(scene, interp, **timing, **settings)
+            except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
+                if args.vtk is not None:
+                    _write_vtk(args.vtk, scene, interp, settings, e.solution)
+                raise Breakdown(e.solution, dt=args.dt) from None
+        else:
+            try:
+                sol, compile_s, wall_s = jm.long_run.run_timed(
+                    scene,
+                    interp,
+                    dt=args.dt,
+                    steps=args.steps,
+                    chunk=args.chunk,
+                    out=args.out,
+                    checkpoint_every=args.checkpoint_every,
+                    progress=False if args.no_progress else None,
+                    **{k: v for k, v in settings.items() if k != "viscosity"},
+                )
+            except jm.SimulationError as e:
+                raise Breakdown(e.solution, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    grad = grad_s = None
+    if names is not None:
+        t0 = time.perf_counter()
+        try:
+            g = jm.gradient(scene, interp, names, dt=args.dt, steps=args.steps, checkpoint=True, **settings)
+        except ValueError as e:
+            raise UsageError(f"--grad: {e}") from None
+        grad = {n: float(g[n]) for n in names}
+        grad_s = time.perf_counter() - t0
+    run = dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        transfer=args.transfer,
+        artificial_cells=args.artificial_cells,
+        ordering=args.ordering,
+        dt=args.dt,
+        steps=args.steps,
+    )
+    if args.t_end is not None:
+        run.update(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step))
+    if viscosity is not None:
+        run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
+    if args.out is not None:
+        run["out"] = str(args.out)
+    if args.vtk is not None:
+        paths = _write_vtk(args.vtk, scene, interp, settings, sol)
+        run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
+    return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
+
+
+def _write_vtk(out_dir, scene, interp, settings, sol):
+    keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
+    model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
+    return jm.vtk.write_series(out_dir, model, sol)
+
+
+def report(
+    run: dict,
+    scene: jm.AbstractScene,
+    sol: jm.Solution,
+    compile_s: float,
+    wall_s: float,
+    *,
+    grad: dict | None = None,
+    grad_s: float | None = None,
+    as_json: bool = False,
+) -> int:
+    """Print a finished run: its settings, parameters, particles, errors and diagnostics.
+
+    In 1D the particle lists hold numbers; in 2D and 3D vectors and nested ``dim x dim`` lists, the
+    particles by initial position, last axis fastest.
+
+    Args:
+        run: the run's settings (``scene``, ``interpolator``, ``dt``, ...), printed first.
+        scene: the scene that ran.
+        sol: its solution.
+        compile_s: compile time (s).
+        wall_s: run time (s).
+        grad: ``d(F_rms_rel)/d(name)`` by name, or ``None``.
+        grad_s: the time of the gradient (s), with ``grad``.
+        as_json: one JSON object instead of the table.
+
+    Returns:
+        The exit status, 0.
+    """
+    err = jm.errors(scene, sol.state, sol.body)
+    diag = jm.diagnostics(scene, sol.state, sol.body)
+    params = scene.parameter_values()
+    st = sol.state
+    if scene.dim == 1:
+        particles = dict(
+            X=floats(sol.body.X[:, 0]),
+            x=floats(st.x[:, 0]),
+            v=floats(st.v[:, 0]),
+            F=floats(st.F[:, 0, 0]),
+            sigma=floats(st.sigma[:, 0, 0]),
+        )
+    else:
+        particles = dict(
+            X=floats(sol.body.X), x=floats(st.x), v=floats(st.v), F=floats(st.F), sigma=floats(st.sigma)
+        )
+    if as_json:
+        out = dict(
+            **run,
+            t=float(st.t),
+            params=params,
+            particles=particles,
+            errors={k: scalar(v) for k, v in err.items()},
+            diagnostics={k: (float(v) if np.ndim(v) == 0 else floats(v)) for k, v in diag.items()},
+            status=int(st.status),
+            wall_s=wall_s,
+            compile_s=compile_s,
+        )
+        if grad is not None:
+            out["grad"] = grad
+            out["grad_s"] = grad_s
+        print_json(out)
+        return 0
+    print("  ".join(f"{k}={v}" for k, v in run.items()) + f"  t={float(st.t):.6g}")
+    print("params: " + "  ".join(f"{k}={v}" for k, v in params.items()))
+    ex = jm.metrics.exact_fields(scene, sol.body, st.t)
+    if scene.dim > 1:
+        _print_particles_nd(sol, ex)
+    else:
+        _print_particles_1d(sol, particles, ex)
+    print("errors: " + "  ".join(f"{k}={scalar(v):.4g}" for k, v in err.items() if v is not None))
+    print("diagnostics: " + "  ".join(f"{k}={_fmt(v)}" for k, v in diag.items()))
+    if grad is not None:
+        print(
+            "d(F_rms_rel)/d: "
+            + "  ".join(f"{k}={v:.10g}" for k, v in grad.items())
+            + f"  (grad_s={grad_s:.3f})"
+        )
+    print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
+    return 0
+
+
+def _fmt(v) -> str:
+    a = np.asarray(v, dtype=float)
+    return f"{float(a):.6g}" if a.ndim == 0 else "(" + ", ".join(f"{x:.6g}" for x in a) + ")"
+
+
+def _print_particles_1d(sol, particles, ex) -> None:
+    head = f"{'p':>4} {'X':>12} {'x':>12} {'v':>12} {'F':>12} {'sigma':>13}"
+    print(head + (f" {'F_exact':>12}" if ex is not None else ""))
+    for p in range(sol.body.n):
+        row = (
+            f"{p:>4} {particles['X'][p]:>12.6g} {particles['x'][p]:>12.6g} {particles['v'][p]:>12.6g} "
+            f"{particles['F'][p]:>12.8f} {particles['sigma'][p]:>13.6g}"
+        )
+        if ex is not None:
+            row += f" {float(np.asarray(ex['F'])[p, 0, 0]):>12.8f}"
+        print(row)
+
+
+def _print_particles_nd(sol, ex) -> None:
+    """One row per particle in 2D/3D: reference and current position, velocity, ``J = det F`` and the
+    mean normal stress ``tr(sigma) / dim`` (``--json`` has every component)."""
+    st = sol.state
+    X, x, v = np.asarray(sol.body.X), np.asarray(st.x), np.asarray(st.v)  # to the host once, not per row
+    J = np.linalg.det(np.asarray(st.F))
+    p_mean = np.trace(np.asarray(st.sigma), axis1=1, axis2=2) / st.F.shape[1]
+    head = f"{'p':>6} {'X':>28} {'x':>28} {'v':>28} {'J':>12} {'tr(sigma)/dim':>14}"
+    if ex is not None:
+        J_ex = np.linalg.det(np.asarray(ex["F"]))
+        head += f" {'J_exact':>12}"
+    print(head)
+    for p in range(sol.body.n):
+        row = f"{p:>6} {_fmt(X[p]):>28} {_fmt(x[p]):>28} {_fmt(v[p]):>28} {J[p]:>12.8f} {p_mean[p]:>14.6g}"
+        if ex is not None:
+            row += f" {J_ex[p]:>12.8f}"
+        print(row)

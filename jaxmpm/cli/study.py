@@ -1,0 +1,54 @@
+"""``jaxmpm study NAME``: run one of the studies in ``jaxmpm.studies`` and write its figures and tables."""
+
+import importlib
+
+import jax
+
+STUDIES = {
+    "talk": "talk",
+    "convergence": "convergence",
+    "work-precision": "work_precision",
+    "stability": "stability",
+    "multid": "multid",
+}
+"""The name on the command line of each study, and its module in ``jaxmpm.studies``."""
+
+RELEASING = ("convergence", "stability")
+"""Studies that compile a new program for each group of runs and call ``release()`` when a group is
+done. The command drops JAX's caches there: every compiled XLA CPU program holds about 265 memory
+maps, and past the process's limit (``vm.max_map_count``, 65,530 by default) compiling the next one
+crashes."""
+
+
+def add_parser(subparsers) -> None:
+    """Add the ``study`` subcommand.
+
+    Args:
+        subparsers: the ``jaxmpm`` parser's subparsers.
+    """
+    p = subparsers.add_parser("study", help="run a study and write its figures and tables")
+    p.add_argument(
+        "name",
+        choices=list(STUDIES),
+        help="talk: the 2013 MPM workshop comparison; convergence: observed orders on the verification "
+        "ladder; work-precision: error against run time; stability: the stiff and extreme map; multid: 2D "
+        "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run)",
+    )
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")
+    p.set_defaults(handler=command)
+
+
+def command(args) -> int:
+    """Run the study ``args.name`` into ``args.out``.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit status, 0.
+    """
+    study = importlib.import_module(f"jaxmpm.studies.{STUDIES[args.name]}")
+    options = dict(release=jax.clear_caches) if args.name in RELEASING else {}
+    study.main(out=args.out, small=args.small, **options)
+    return 0
