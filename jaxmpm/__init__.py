@@ -42,6 +42,7 @@ from .interpolators import (
 from .interpolators import (
     GIMP as GIMP,
 )
+from .interpolators import INTERPOLATORS as INTERPOLATORS
 from .interpolators import (
     MPQ as MPQ,
 )
@@ -51,7 +52,6 @@ from .interpolators import (
 from .interpolators import (
     AbstractInterpolator as AbstractInterpolator,
 )
-from .interpolators import INTERPOLATORS as INTERPOLATORS
 from .materials import (
     AbstractMaterial as AbstractMaterial,
 )
@@ -89,7 +89,6 @@ from .transfers import PIC as PIC
 from .transfers import TRANSFERS as TRANSFERS
 from .transfers import AbstractTransfer as AbstractTransfer
 from .viscosity import ArtificialViscosity as ArtificialViscosity
-
 
 try:
     __version__ = version("jaxmpm")

@@ -12,10 +12,27 @@ import numpy as np
 
 
 def is_concrete(value) -> bool:
+    """Whether ``value`` can be inspected (is not a tracer).
+
+    Args:
+        value: anything.
+
+    Returns:
+        ``False`` for a JAX tracer, else ``True``.
+    """
     return not isinstance(value, jax.core.Tracer)
 
 
 def check_finite(name: str, value) -> None:
+    """Check a concrete value (every entry of an array); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+
+    Raises:
+        ValueError: ``value`` is not finite.
+    """
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(np.isfinite(arr)):
@@ -23,6 +40,15 @@ def check_finite(name: str, value) -> None:
 
 
 def check_positive(name: str, value) -> None:
+    """Check a concrete value (every entry of an array); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+
+    Raises:
+        ValueError: ``value`` is not finite or not > 0.
+    """
     check_finite(name, value)
     if is_concrete(value):
         arr = np.asarray(value)
@@ -31,6 +57,15 @@ def check_positive(name: str, value) -> None:
 
 
 def check_nonnegative(name: str, value) -> None:
+    """Check a concrete value (every entry of an array); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+
+    Raises:
+        ValueError: ``value`` is not finite or not >= 0.
+    """
     check_finite(name, value)
     if is_concrete(value):
         arr = np.asarray(value)
@@ -39,6 +74,16 @@ def check_nonnegative(name: str, value) -> None:
 
 
 def check_greater(name: str, value, bound: float) -> None:
+    """Check a concrete value (every entry of an array); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+        bound: the bound.
+
+    Raises:
+        ValueError: ``value`` is not finite or not > ``bound``.
+    """
     check_finite(name, value)
     if is_concrete(value):
         arr = np.asarray(value)
@@ -47,6 +92,16 @@ def check_greater(name: str, value, bound: float) -> None:
 
 
 def check_less(name: str, value, bound: float) -> None:
+    """Check a concrete value (every entry of an array); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+        bound: the bound.
+
+    Raises:
+        ValueError: ``value`` is not finite or not < ``bound``.
+    """
     check_finite(name, value)
     if is_concrete(value):
         arr = np.asarray(value)
@@ -55,6 +110,16 @@ def check_less(name: str, value, bound: float) -> None:
 
 
 def check_int(name: str, value, minimum: int) -> None:
+    """Check a structural integer.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+        minimum: the smallest value allowed.
+
+    Raises:
+        ValueError: ``value`` is not an integer (a bool is not one) or is below ``minimum``.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if value < minimum:

@@ -2,24 +2,26 @@
 
 import math
 import time
+import typing
 from collections.abc import Sequence
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, Float, Int
 
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
 from ._step import Model, Setup, initial_state, setup, stable_dt, step
 from ._util import as_float, det
-from .interpolators import AbstractInterpolator
+from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
-from .transfers import FLIP, AbstractTransfer
+from .transfers import FLIP, TRANSFERS, AbstractTransfer
 from .viscosity import ArtificialViscosity
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")
+"""The ``State`` fields a ``SaveAt`` may name: the per-particle (and per-corner) arrays."""
 
 
 class SaveAt(eqx.Module):
@@ -60,11 +62,17 @@ class Solution(eqx.Module):
     history: dict[str, Array] | None
 
     @property
-    def status(self) -> Array:
+    def status(self) -> Int[Array, ""]:
+        """The final state's failure bitmask (``jaxmpm.status``); 0 for a healthy run."""
         return self.state.status
 
     def failure(self) -> dict | None:
-        """``None`` for a healthy run, else the first failure's step, particle and quantities."""
+        """The first failure of the run.
+
+        Returns:
+            ``None`` for a healthy run, else a dict with the ``status`` bitmask, the ``step`` and
+            ``particle`` of the first failure and the failed ``quantities`` in words.
+        """
         status = int(self.state.status)
         if status == 0:
             return None
@@ -80,14 +88,24 @@ class ToEnd(eqx.Module):
     """A run to an end time with the CFL-limited step ``cfl h / max_p(c_p + |v_p|)``, recomputed
     every step; the last step is cut to land exactly on ``t_end``, and steps past it are masked, so a
     bounded scan (``max_steps`` long) carries it and ``jax.grad`` goes through (``t_end`` and ``cfl``
-    are traced)."""
+    are traced).
+
+    Attributes:
+        t_end: the end time.
+        cfl: the Courant number of every step.
+    """
 
     t_end: Float[Array, ""] = eqx.field(converter=as_float)
     cfl: Float[Array, ""] = eqx.field(converter=as_float)
 
 
 class SimulationError(RuntimeError):
-    """A run broke down. ``error.solution`` holds everything computed up to the last good step."""
+    """A run broke down. ``error.solution`` holds everything computed up to the last good step.
+
+    Args:
+        message: what failed, where and when (``failure_message``).
+        solution: the run's ``Solution``, its state the last good one.
+    """
 
     def __init__(self, message: str, solution: Solution):
         super().__init__(message)
@@ -100,9 +118,14 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
     if not isinstance(scene, AbstractScene):
         raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
     if not isinstance(interpolator, AbstractInterpolator):
-        raise ValueError(f"interpolator must be one of SPQ(), GIMP(), CPDI(), MPQ(), got {interpolator!r}")
+        raise ValueError(
+            f"interpolator must be a jaxmpm interpolator (INTERPOLATORS: {', '.join(INTERPOLATORS)}), "
+            f"got {interpolator!r}"
+        )
     if not isinstance(transfer, AbstractTransfer):
-        raise ValueError(f"transfer must be one of FLIP(), PIC(), APIC(), got {transfer!r}")
+        raise ValueError(
+            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
+        )
     if isinstance(dt, ToEnd):
         check_positive("t_end", dt.t_end)
         check_positive("cfl", dt.cfl)
@@ -117,7 +140,17 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         check_positive("cfl_limit", cfl_limit)
 
 
-def _save(state: State, fields: Sequence[str]) -> dict[str, Array]:
+def save_fields(state: State, fields: Sequence[str]) -> dict[str, Array]:
+    """The named fields of ``state`` that the run has (``C``, ``corners`` and ``x_traction`` may be
+    ``None`` and are then left out).
+
+    Args:
+        state: the state.
+        fields: names of ``State`` fields (``STATE_FIELDS``).
+
+    Returns:
+        Field name to array.
+    """
     return {name: getattr(state, name) for name in fields if getattr(state, name) is not None}
 
 
@@ -128,7 +161,16 @@ RESIDUAL_TO_STATE = 8
 
 
 def checkpoint_block(checkpoint: bool | int | None, steps: int) -> int | None:
-    """Steps per checkpointed block: ``True`` means ``ceil(sqrt(steps / 8))``, memory ~ sqrt(steps)."""
+    """Steps per checkpointed block of reverse mode.
+
+    Args:
+        checkpoint: ``True`` for ``ceil(sqrt(steps / 8))`` (memory ~ sqrt(steps)), an int for that
+            block length, ``False`` or ``None`` for no checkpointing.
+        steps: steps of the run.
+
+    Returns:
+        The block length, or ``None``.
+    """
     if checkpoint is None or checkpoint is False:
         return None
     if checkpoint is True:
@@ -138,20 +180,21 @@ def checkpoint_block(checkpoint: bool | int | None, steps: int) -> int | None:
 
 def advance(
     model: Model,
-    s: Setup,
+    setup: Setup,
     state: State,
-    dt: Array,
+    dt: Float[Array, ""] | ToEnd,
     steps: int,
     saveat: SaveAt,
     checkpoint: int | None = None,
-    limit: Array | None = None,
-):
-    """Take ``steps`` steps from ``state`` in one scan (the loop every driver shares).
+    limit: Int[Array, ""] | None = None,
+) -> tuple[State, dict[str, Array] | None]:
+    """Take ``steps`` steps from ``state`` in one scan (the loop every driver has in common).
 
     Args:
-        model, s: the run and what it derives once.
+        model: the run.
+        setup: what it derives once (``jaxmpm.setup(model)``).
         state: the state to start from.
-        dt: the time step.
+        dt: the time step, or a ``ToEnd`` for CFL-limited steps to an end time.
         steps: how many steps (static).
         saveat: with ``every=k``, the named fields after every k-th step are returned.
         checkpoint: block length of checkpointed reverse mode, or ``None``.
@@ -164,8 +207,8 @@ def advance(
 
     def one(state, _):
         if not isinstance(dt, ToEnd):
-            return step(model, s, state, dt, limit), None
-        h_dt = stable_dt(model, s, state, dt.cfl)
+            return step(model, setup, state, dt, limit), None
+        h_dt = stable_dt(model, setup, state, dt.cfl)
         remaining = dt.t_end - state.t
         last = h_dt >= remaining
         active = remaining > 0
@@ -175,7 +218,10 @@ def advance(
         # generous max_steps costs little. (Under vmap the branches become a select and both run.)
         go = active & (state.status == 0)
         new = jax.lax.cond(
-            go, lambda st: step(model, s, st, dt_n, limit, active=active, t_new=t_new), lambda st: st, state
+            go,
+            lambda st: step(model, setup, st, dt_n, limit, active=active, t_new=t_new),
+            lambda st: st,
+            state,
         )
         return new, None
 
@@ -201,7 +247,7 @@ def advance(
 
     def block(state, _):
         state = run(state, k)
-        out = _save(state, saveat.fields)
+        out = save_fields(state, saveat.fields)
         if isinstance(dt, ToEnd):
             out["t"] = state.t
         return state, out
@@ -210,7 +256,21 @@ def advance(
     return run(state, rem), saved
 
 
-def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | None):
+def run_scan(
+    model: Model, dt: Float[Array, ""] | ToEnd, steps: int, saveat: SaveAt, checkpoint: int | None
+) -> Solution:
+    """One whole run of ``model`` from its initial state, traceable (``simulate`` compiles it).
+
+    Args:
+        model: the run.
+        dt: the time step, or a ``ToEnd``.
+        steps: steps (with a ``ToEnd``: ``max_steps``), static.
+        saveat: what to keep besides the final state.
+        checkpoint: block length of checkpointed reverse mode (``checkpoint_block``), or ``None``.
+
+    Returns:
+        The ``Solution``, its status recording any failure (nothing is raised).
+    """
     s = setup(model)
     state0 = initial_state(model, s)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
@@ -226,7 +286,7 @@ def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | 
         )
     if saved is None:
         return Solution(state, s.body, None, None)
-    first = _save(state0, saveat.fields)
+    first = save_fields(state0, saveat.fields)
     history = {name: jnp.concatenate([first[name][None], saved[name]]) for name in first}
     if isinstance(dt, ToEnd):
         ts = jnp.concatenate([state0.t[None], saved["t"]])
@@ -235,11 +295,19 @@ def _run(model: Model, dt: Array, steps: int, saveat: SaveAt, checkpoint: int | 
     return Solution(state, s.body, ts, history)
 
 
-_run_jit = eqx.filter_jit(_run)
+_run_scan_jit = eqx.filter_jit(run_scan)
 
 
-def _message(sol: Solution, dt: float | None) -> str:
-    """The breakdown message; ``dt`` is ``None`` for a run to an end time (variable steps)."""
+def failure_message(sol: Solution, dt: float | None) -> str:
+    """The message of a breakdown: the step, the time, the first failing particle and the quantities.
+
+    Args:
+        sol: a solution whose status is not 0.
+        dt: the fixed time step, or ``None`` for a run to an end time (variable steps).
+
+    Returns:
+        The message of ``SimulationError``.
+    """
     f = sol.failure()
     p = f["particle"]
     last = f["step"] - 1
@@ -276,7 +344,7 @@ def _finish(sol: Solution, dt, throw: bool) -> Solution:
         return sol
     if is_concrete(sol.state.status) and (dt is None or is_concrete(dt)):
         if int(sol.state.status) != 0:
-            raise SimulationError(_message(sol, None if dt is None else float(dt)), sol)
+            raise SimulationError(failure_message(sol, None if dt is None else float(dt)), sol)
         return sol
     return eqx.error_if(
         sol,
@@ -287,27 +355,39 @@ def _finish(sol: Solution, dt, throw: bool) -> Solution:
     )
 
 
-def _prepare(
-    scene,
-    interpolator,
+@typing.no_type_check  # validates every argument itself, raising ValueError (see _validate)
+def prepare(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
     *,
     dt=None,
-    steps=None,
+    steps: int | None = None,
     t_end=None,
     cfl=0.5,
-    max_steps=None,
-    transfer=None,
-    artificial_cells=0,
-    saveat=None,
-    cfl_limit=1.0,
-    ordering="usl",
-    checkpoint=False,
-    viscosity=None,
-):
+    max_steps: int | None = None,
+    transfer: AbstractTransfer | None = None,
+    artificial_cells: int = 0,
+    saveat: SaveAt | None = None,
+    cfl_limit: float | None = 1.0,
+    ordering: str = "usl",
+    checkpoint: bool | int = False,
+    viscosity: ArtificialViscosity | None = None,
+) -> tuple[Model, Float[Array, ""] | ToEnd, int, SaveAt]:
     """Validate a run's arguments (before anything is traced) and build its ``Model``.
 
-    Returns ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end``
-    (then ``steps`` is ``max_steps``).
+    Args:
+        scene, interpolator, dt, steps, t_end, cfl, max_steps, transfer, artificial_cells, saveat,
+            cfl_limit: as for ``simulate``.
+            ordering: as for ``simulate``.
+            checkpoint: as for ``simulate``.
+            viscosity: as for ``simulate``.
+
+    Returns:
+        ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end`` (then
+        ``steps`` is ``max_steps``); ``saveat`` the default ``SaveAt()`` when none was given.
+
+    Raises:
+        ValueError: bad input.
     """
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
@@ -326,6 +406,7 @@ def _prepare(
     return model, dt if isinstance(dt, ToEnd) else as_float(dt), steps, saveat
 
 
+@typing.no_type_check  # validates every argument itself, raising ValueError (see _validate)
 def simulate(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
@@ -359,13 +440,13 @@ def simulate(
             ``max_steps`` steps (required), the steps after ``t_end`` masked. A run that needs more
             steps stops at ``max_steps`` with the status ``MAX_STEPS``. Differentiable in ``t_end``,
             ``cfl`` and the scene's parameters (the step count is piecewise constant in them).
-        transfer: ``FLIP()`` (default, the talk's), ``PIC()`` or ``APIC()``.
-        artificial_cells: layers of artificial cells at each free end (SPEC section 4).
+        transfer: ``FLIP()`` (default), ``PIC()`` or ``APIC()``.
+        artificial_cells: layers of artificial cells at each free end (``jaxmpm.boundaries``).
         saveat: what to keep besides the final state (default: nothing). With ``t_end``, the saved
             times ``Solution.ts`` are those of the saved steps.
         cfl_limit: fail a step whose ``dt`` exceeds ``cfl_limit h / max(c + |v|)``; ``None`` to
             allow any step.
-        ordering: ``"usl"`` (default, the talk's) or ``"musl"`` (see ``jaxmpm.Model``).
+        ordering: ``"usl"`` (default) or ``"musl"`` (see ``jaxmpm.Model``).
         checkpoint: bounded-memory reverse mode: ``True`` runs the loop in checkpointed blocks of
             ``ceil(sqrt(steps / 8))`` steps (memory ~ sqrt(steps)), an int sets the block length,
             ``False`` (default) stores every step's residuals (fastest for short runs). Results
@@ -380,7 +461,7 @@ def simulate(
         ValueError: bad input, before anything is traced.
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
-    model, dt_arr, n, saveat = _prepare(
+    model, dt_arr, n, saveat = prepare(
         scene,
         interpolator,
         dt=dt,
@@ -396,25 +477,30 @@ def simulate(
         checkpoint=checkpoint,
         viscosity=viscosity,
     )
-    sol = _run_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
+    sol = _run_scan_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
     return _finish(sol, dt, throw)
 
 
+@typing.no_type_check  # validates every argument itself, raising ValueError (see _validate)
 def simulate_timed(
     scene: AbstractScene, interpolator: AbstractInterpolator, *, throw: bool = True, **kwargs
 ) -> tuple[Solution, float, float]:
     """``simulate`` with compile time and run time measured apart (ahead-of-time compilation).
 
-    Takes the same arguments as ``simulate``.
+    Args:
+        scene: as for ``simulate``.
+        interpolator: as for ``simulate``.
+        throw: as for ``simulate``.
+        **kwargs: as for ``simulate``.
 
     Returns:
         ``(solution, compile_s, wall_s)``: ``compile_s`` covers tracing, lowering and XLA
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
-    model, dt_arr, n, saveat = _prepare(scene, interpolator, **kwargs)
+    model, dt_arr, n, saveat = prepare(scene, interpolator, **kwargs)
     t0 = time.perf_counter()
     block = checkpoint_block(kwargs.get("checkpoint", False), n)
-    compiled = _run_jit.lower(model, dt_arr, n, saveat, block).compile()
+    compiled = _run_scan_jit.lower(model, dt_arr, n, saveat, block).compile()
     t1 = time.perf_counter()
     sol = jax.block_until_ready(compiled(model, dt_arr, n, saveat, block))
     t2 = time.perf_counter()

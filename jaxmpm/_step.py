@@ -1,4 +1,13 @@
-"""One explicit USL step (SPEC section 2), assembled from a scene, an interpolator and a transfer.
+"""One explicit MPM step, assembled from a scene, an interpolator and a transfer.
+
+The step is update-stress-last (USL) as in Sulsky, Chen & Schreyer 1994 and Bonifasi-Lista, Brannon
+& Wiskin 2013: (1) particle to grid, ``m_i = sum_p phi_ip m_p`` and ``m_i v_i = sum_p phi_ip m_p
+v_p``; (2) forces, ``f_i = -sum_p dphi_ip sigma_p V_p + sum_p phi_ip m_p b_p`` plus the tractions at
+the material boundary points; (3) grid update, ``a_i = f_i / m_i``, ``v_i^{n+1} = v_i + dt a_i``
+with the velocity boundary conditions; (4) particles, ``x_p += dt sum_i phi_ip v_i^{n+1}`` and the
+transfer's velocity update; (5) kinematics, the interpolator's update of ``F``; (6) stress,
+``sigma_p = sigma(F_p)``. MUSL (Sulsky, Zhou & Schreyer 1995) re-projects the new particle momenta
+to the grid before (4)'s position update.
 
 Optional physics enters by Python structure while tracing (``if scene.body_force is not None``),
 so the compiled step holds only what the scene and the run declared.
@@ -11,7 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
 from ._util import contract, det
@@ -39,7 +48,7 @@ class Model(eqx.Module):
         cfl_limit: a step with ``dt > cfl_limit h / max(c + |v|)`` is a failure; ``None`` disables
             the check (static).
         viscosity: an ``ArtificialViscosity`` added to the stress in compression, or ``None``.
-        ordering: ``"usl"`` (the talk's, SPEC 2) or ``"musl"`` (static). MUSL (Sulsky, Zhou &
+        ordering: ``"usl"`` (the reference ordering) or ``"musl"`` (static). MUSL (Sulsky, Zhou &
             Schreyer 1995) re-projects the particles' new momenta to the grid after the particle
             velocity update and advances positions, corners, traction points and F with those
             nodal velocities. USL advances them with ``v_i + a_i dt``, which is unbounded where a
@@ -61,22 +70,43 @@ class Model(eqx.Module):
 
 
 class Setup(eqx.Module):
-    """What a run derives from its model once, before the time loop."""
+    """What a run derives from its model once, before the time loop.
+
+    Attributes:
+        grid: the background grid.
+        body: the reference configuration of the real particles.
+        material: the scene's material.
+        layer: the artificial particles, or ``None``.
+        walls: the nodal velocity components held at zero (walls, symmetry planes), or ``None``.
+        traction: the material boundary points that carry a traction, or ``None``.
+        tiny: node masses at or below this are round-off, not mass (see ``step``).
+    """
 
     grid: Grid
     body: Body
     material: AbstractMaterial
     layer: ArtificialLayer | None
-    walls: Bool[Array, "n_nodes dim"] | None  # velocity components held at zero (walls, symmetry planes)
+    walls: Bool[Array, "n_nodes dim"] | None
     traction: TractionPoints | None
-    tiny: Float[Array, ""]  # node masses at or below this are round-off, not mass (see ``step``)
+    tiny: Float[Array, ""]
 
 
 def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
-    """Which faces carry a traction (low and high face of each axis), read from the structure of
-    ``scene.traction``."""
-    faces = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
+    """Which faces carry a traction, read from the structure of ``scene.traction``.
+
+    Args:
+        scene: the scene.
+
+    Returns:
+        One bool per face: low and high face of axis 0, then of axis 1, ...
+
+    Raises:
+        ValueError: ``scene.traction`` gives the wrong number of faces.
+    """
     dim = scene.dim
+    if scene.traction is None:
+        return (False,) * (2 * dim)
+    faces = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
     if len(faces) != 2 * dim:
         raise ValueError(
             f"{type(scene).__name__}.traction must return {2 * dim} entries (low and high face of each "
@@ -86,6 +116,18 @@ def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
 
 
 def setup(model: Model) -> Setup:
+    """Derive what the run needs once: grid, body, material, artificial layer, walls, traction points.
+
+    Args:
+        model: the run.
+
+    Returns:
+        The ``Setup``.
+
+    Raises:
+        ValueError: ``pad`` leaves no room for the artificial cells, or the scene's traction has
+            the wrong number of faces.
+    """
     scene = model.scene
     grid = scene.grid()
     free = (scene.left == "free", scene.right == "free")
@@ -107,13 +149,24 @@ def setup(model: Model) -> Setup:
     )
 
 
-def initial_state(model: Model, s: Setup) -> State:
-    """The state at ``t = 0``: particles at rest in their reference positions, ``F`` = identity."""
-    scene, body = model.scene, s.body
+def initial_state(model: Model, setup: Setup) -> State:
+    """The state at ``t = 0``.
+
+    Particles sit at their reference positions with ``F = I``, or where ``scene.initial_position``
+    puts them with ``F = dx/dX``; velocities are ``scene.initial_velocity``.
+
+    Args:
+        model: the run.
+        setup: what it derives once (``setup(model)``).
+
+    Returns:
+        The ``State``.
+    """
+    scene, body = model.scene, setup.body
     n, dim = body.X.shape
     dtype = body.X.dtype
     v = jax.vmap(scene.initial_velocity)(body.X)
-    x_tr = None if s.traction is None else s.traction.X
+    x_tr = None if setup.traction is None else setup.traction.X
     if scene.initial_position is None:
         x, corners = body.X, body.X_corners
         F = jnp.broadcast_to(jnp.eye(dim, dtype=dtype), (n, dim, dim))
@@ -132,7 +185,7 @@ def initial_state(model: Model, s: Setup) -> State:
         x=x,
         v=v,
         F=F,
-        sigma=jax.vmap(s.material.stress)(F),
+        sigma=jax.vmap(setup.material.stress)(F),
         C=C,
         corners=corners,
         x_traction=x_tr,
@@ -146,51 +199,89 @@ def _particle_corners(state: State, body: Body):
     return None if state.corners is None else body.particle_corners(state.corners)
 
 
-def _sound_speed(model: Model, s: Setup, state: State) -> Float[Array, " n"]:
+def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]:
     """Each particle's wave speed; the stored stress stands in for work on ``F`` when it is the
     material's alone (no viscous part)."""
     if model.viscosity is None:
-        fn = jax.vmap(s.material.sound_speed_from_stress, in_axes=(0, 0, None))
+        fn = jax.vmap(setup.material.sound_speed_from_stress, in_axes=(0, 0, None))
         return fn(state.F, state.sigma, model.scene.rho0)
-    return jax.vmap(s.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
+    return jax.vmap(setup.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
 
 
 def _transfer_to_grid(grid: Grid, transfer: AbstractTransfer, stencil, x, v, C, m):
-    """Nodal mass and momentum that particles with ``stencil`` put on the grid (SPEC 2, step 1)."""
+    """Nodal mass and momentum that particles with ``stencil`` put on the grid (the step's stage 1)."""
     mass = grid.scatter(stencil.idx, stencil.w * m[:, None])
     return mass, grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, C, m))
 
 
-def particle_to_grid(model: Model, s: Setup, state: State):
-    """Nodal ``(mass, momentum)`` of the real particles of ``state``: the step's first stage without
-    the artificial particles (for output; the step itself adds those)."""
-    corners = _particle_corners(state, s.body)
-    stencil = model.interpolator.stencil(s.grid, s.body.r0, state.x, state.F, corners, gradients=False)
-    return _transfer_to_grid(s.grid, model.transfer, stencil, state.x, state.v, state.C, s.body.m)
+def particle_to_grid(
+    model: Model, setup: Setup, state: State
+) -> tuple[Float[Array, " n_nodes"], Float[Array, "n_nodes dim"]]:
+    """Nodal mass and momentum of the real particles of ``state``.
+
+    The step's first stage without the artificial particles (for output; the step itself adds them).
+
+    Args:
+        model: the run.
+        setup: what it derives once.
+        state: the state.
+
+    Returns:
+        ``(mass, momentum)``.
+    """
+    corners = _particle_corners(state, setup.body)
+    stencil = model.interpolator.stencil(
+        setup.grid, setup.body.r0, state.x, state.F, corners, gradients=False
+    )
+    return _transfer_to_grid(setup.grid, model.transfer, stencil, state.x, state.v, state.C, setup.body.m)
 
 
-def stable_dt(model: Model, s: Setup, state: State, cfl: Float[Array, ""]) -> Float[Array, ""]:
-    """The CFL-limited step ``cfl h / max_p(c_p + |v_p|)`` of the current state (SPEC 5)."""
-    c = _sound_speed(model, s, state)
+def stable_dt(model: Model, setup: Setup, state: State, cfl: Float[Array, ""]) -> Float[Array, ""]:
+    """The CFL-limited step ``cfl h / max_p(c_p + |v_p|)`` of the current state.
+
+    Args:
+        model: the run.
+        setup: what it derives once.
+        state: the state.
+        cfl: the Courant number.
+
+    Returns:
+        The time step.
+    """
+    c = _sound_speed(model, setup, state)
     speed = jnp.max(c + jnp.linalg.norm(state.v, axis=1))
-    return cfl * s.grid.h / speed
+    return cfl * setup.grid.h / speed
 
 
 def step(
     model: Model,
-    s: Setup,
+    setup: Setup,
     state: State,
     dt: Float[Array, ""],
-    limit: Array | None = None,
-    active: Array | None = None,
-    t_new: Array | None = None,
+    limit: Int[Array, ""] | None = None,
+    active: Bool[Array, ""] | None = None,
+    t_new: Float[Array, ""] | None = None,
 ) -> State:
-    """One USL (or MUSL) step. A step that fails a check is not taken: the state stays, its status
-    records it. With ``limit``, a step from ``state.step >= limit`` is not taken either (masking the
-    tail of a fixed-length chunk); with ``active`` false, neither is it (the tail of a run to an end
-    time). ``t_new`` is the time after the step (default ``(step + 1) dt``, for a fixed step)."""
+    """One USL (or MUSL) step (see the module's docstring).
+
+    A step that fails a check is not taken: the state stays, its status records it.
+
+    Args:
+        model: the run.
+        setup: what it derives once (``setup(model)``).
+        state: the state to step from.
+        dt: the time step.
+        limit: a step from ``state.step >= limit`` is not taken (masking the tail of a fixed-length
+            chunk); ``None`` for no limit.
+        active: where false, the step is not taken (the tail of a run to an end time); ``None``
+            means always active.
+        t_new: the time after the step (default ``(step + 1) dt``, for a fixed step).
+
+    Returns:
+        The new state, or on failure the old one with its status, failing step and particle set.
+    """
     scene, interp, transfer = model.scene, model.interpolator, model.transfer
-    grid, body, mat = s.grid, s.body, s.material
+    grid, body, mat = setup.grid, setup.body, setup.material
     x, v, F, t = state.x, state.v, state.F, state.t
     m = body.m
     stencil = interp.stencil(grid, body.r0, x, F, _particle_corners(state, body))
@@ -199,8 +290,8 @@ def step(
     mass, momentum = _transfer_to_grid(grid, transfer, stencil, x, v, state.C, m)
     mass_all = mass
     pre_checks = []
-    if s.layer is not None:
-        layer = s.layer
+    if setup.layer is not None:
+        layer = setup.layer
         x_a, v_a, F_a = layer.extrapolate(x), layer.extrapolate(v), layer.mean(F)
         C_a = layer.mean(state.C) if transfer.affine else None
         src = layer.src[:, 0]
@@ -215,7 +306,7 @@ def step(
     # A node mass below a few hundred ulps of a particle's mass is round-off in the weights (a domain
     # edge exactly on a node gives its far neighbour 1e-31 instead of 0), not mass: such a node counts
     # as empty. Otherwise a/m there is round-off divided by round-off, and the run depends on which.
-    occupied = mass_all > s.tiny
+    occupied = mass_all > setup.tiny
     v_n = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
 
     # 2. Forces: internal, body force, tractions at the material boundary points.
@@ -229,7 +320,7 @@ def step(
     if state.x_traction is not None:
         tractions = scene.traction(t)  # per face (low, high of each axis), each None or a vector
         tr_face = jnp.stack([tv for tv in tractions if tv is not None])  # (loaded faces, dim)
-        tp = s.traction
+        tp = setup.traction
         tr = tr_face
         if tp.area is not None:  # a face's traction per reference area, times each point's area
             tr = jnp.repeat(tr_face, np.asarray(tp.counts), axis=0, total_repeat_length=sum(tp.counts))
@@ -240,26 +331,26 @@ def step(
         pre_checks.append(
             (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(tp.report)].set(bad_tr))
         )
-    has_mass = mass > s.tiny
+    has_mass = mass > setup.tiny
     f = fold_massless(f, has_mass, grid.axes)
 
     # 3. Grid update; inactive nodes (no real mass) get no acceleration; walls hold v = 0.
     a = jnp.where(has_mass[:, None], f / jnp.where(has_mass, mass, 1.0)[:, None], 0.0)
-    if s.walls is not None:
-        v_n = jnp.where(s.walls, 0.0, v_n)
-        a = jnp.where(s.walls, 0.0, a)
+    if setup.walls is not None:
+        v_n = jnp.where(setup.walls, 0.0, v_n)
+        a = jnp.where(setup.walls, 0.0, a)
     v_new = v_n + dt * a
 
     # 4. Particles. (MUSL: then the nodal velocity is re-projected from the new particle momenta.)
     v_p, C = transfer.update(grid, stencil, v, a, v_new, dt)
     if model.ordering == "musl":
         momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v_p, C, m))
-        if s.layer is not None:
+        if setup.layer is not None:
             v_a, C_a = layer.extrapolate(v_p), layer.mean(C) if transfer.affine else None
             momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
         v_new = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
-        if s.walls is not None:
-            v_new = jnp.where(s.walls, 0.0, v_new)
+        if setup.walls is not None:
+            v_new = jnp.where(setup.walls, 0.0, v_new)
     x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
 
     # 5. Kinematics, 6. constitutive update.
@@ -298,7 +389,7 @@ def step(
     left_grid = _off_grid(grid, lo, hi)
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
     if model.cfl_limit is not None:
-        speed = _sound_speed(model, s, state) + jnp.linalg.norm(v, axis=1)
+        speed = _sound_speed(model, setup, state) + jnp.linalg.norm(v, axis=1)
         # (a relative allowance of a few ulps, so a step set exactly at the limit passes)
         allowed = model.cfl_limit * grid.h * (1.0 + 16 * jnp.finfo(dt.dtype).eps)
         checks.append((st_bits.CFL, dt * speed > allowed))
@@ -345,12 +436,20 @@ def fold_massless(
     within one node is dropped (no interpolator here reaches that far from every mass).
 
     On a grid of ``axes`` nodes per axis (2D, 3D), force on a node with massive neighbours along
-    several axes is shared equally among those axes (the lower neighbour first along each), so the
+    several axes is split equally among those axes (the lower neighbour first along each), so the
     axes are treated alike. Force on a node whose massive neighbours are only diagonal goes along one
     axis at a time, axis 0 first: a node that can reach mass along the later axes keeps it for them;
     failing that, it moves to a neighbour that can (so force on a node diagonal to the body's corner
-    reaches the corner node in two moves). Force
-    with no mass within one node along every axis is dropped.
+    reaches the corner node in two moves). Force with no mass within one node along every axis is
+    dropped.
+
+    Args:
+        f: nodal forces.
+        has_mass: which nodes have mass.
+        axes: nodes along each axis (``None`` or one axis: 1D).
+
+    Returns:
+        The folded forces.
     """
     zero = jnp.zeros_like(f[:1])
     if axes is None or len(axes) == 1:
@@ -377,7 +476,7 @@ def fold_massless(
     f = f.reshape(axes + f.shape[1:])
     kept = jnp.where(m[..., None], f, 0.0)
     stray = jnp.where(m[..., None], 0.0, f)
-    # Force on a node with massive neighbours along several axes is shared equally among those axes,
+    # Force on a node with massive neighbours along several axes is split equally among those axes,
     # so the fold treats the axes alike (a square body stays symmetric about its diagonal).
     near = [shift(m, 1, a) | shift(m, -1, a) for a in range(d)]
     count = functools.reduce(operator.add, [jnp.where(n_a, 1.0, 0.0) for n_a in near])

@@ -1,21 +1,36 @@
-"""Small helpers shared across modules."""
+"""Small helpers used across modules."""
 
 import functools
 import operator
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array
+from jaxtyping import Array, ArrayLike, Float, Real
 
 
-def as_float(x) -> Array:
-    """``x`` as an array of the default float dtype (float64 once x64 is enabled)."""
+def as_float(x: Real[ArrayLike, ""]) -> Float[Array, ""]:
+    """A continuous parameter as a 0-d array of the default float dtype (float64 once x64 is enabled):
+    the converter of every parameter field of scenes, materials and runs.
+
+    Args:
+        x: a number, or a 0-d array (a tracer under ``jax.grad`` or ``jax.vmap``).
+
+    Returns:
+        The array.
+    """
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
 def det(F):
-    """``det F`` of each particle, ``F`` of shape ``(..., dim, dim)``: closed forms up to 3x3 (the
-    entry itself in 1D), which fuse, where ``jnp.linalg.det`` runs an LU factorisation per matrix."""
+    """``det F`` of each particle: closed forms up to 3x3 (the entry itself in 1D), which fuse, where
+    ``jnp.linalg.det`` runs an LU factorisation per matrix.
+
+    Args:
+        F: matrices, ``(..., dim, dim)``.
+
+    Returns:
+        Their determinants, ``(...)``.
+    """
     d = F.shape[-1]
     if d == 1:
         return F[..., 0, 0]
@@ -39,6 +54,14 @@ def contract(spec: str, a: Array, b: Array) -> Array:
     to a library kernel that runs millions of length-2 products one by one, several times slower
     than unrolled elementwise adds, which fuse with their neighbours (measured on the 1D step, see
     experiments/bench.py). Two operands, no repeated letter within one operand.
+
+    Args:
+        spec: the einsum specification, ``"ab,bc->ac"``.
+        a: the first operand.
+        b: the second operand.
+
+    Returns:
+        ``jnp.einsum(spec, a, b)``, summed in unrolled adds.
     """
     ins, out = spec.replace(" ", "").split("->")
     sa, sb = ins.split(",")
@@ -61,8 +84,15 @@ def contract(spec: str, a: Array, b: Array) -> Array:
 
 
 def adjugate(A):
-    """The adjugate ``adj A`` (``A^-1 = adj A / det A``) of each ``(..., dim, dim)`` matrix, in closed
-    form for ``dim <= 3`` (the cofactor transpose; 1 in 1D)."""
+    """The adjugate ``adj A`` (``A^-1 = adj A / det A``) of each matrix, in closed form for ``dim <= 3``
+    (the cofactor transpose; 1 in 1D).
+
+    Args:
+        A: matrices, ``(..., dim, dim)``.
+
+    Returns:
+        Their adjugates.
+    """
     d = A.shape[-1]
     if d == 1:
         return jnp.ones_like(A)
@@ -84,17 +114,30 @@ def adjugate(A):
 
 
 def lattice(counts):
-    """The integer multi-indices of a ``counts[0] x counts[1] x ...`` lattice as a static
-    ``(prod(counts), len(counts))`` array, the last axis fastest (the flat order of grids and bodies)."""
+    """The integer multi-indices of a ``counts[0] x counts[1] x ...`` lattice.
+
+    Args:
+        counts: points along each axis.
+
+    Returns:
+        A static ``(prod(counts), len(counts))`` array, the last axis fastest (the flat order of grids
+        and bodies).
+    """
     import numpy as np
 
     return np.indices(tuple(counts)).reshape(len(counts), -1).T
 
 
 def corner_signs(dim: int):
-    """The ``2^dim`` corners of the reference cube ``[-1, 1]^dim`` as a static ``(2^dim, dim)`` array,
-    corner ``c`` having ``+1`` along axis ``a`` where bit ``dim - 1 - a`` of ``c`` is set (the last
-    axis fastest; in 1D: left, right)."""
+    """The ``2^dim`` corners of the reference cube ``[-1, 1]^dim``.
+
+    Args:
+        dim: number of space dimensions.
+
+    Returns:
+        A static ``(2^dim, dim)`` array, corner ``c`` having ``+1`` along axis ``a`` where bit ``dim -
+        1 - a`` of ``c`` is set (the last axis fastest; in 1D: left, right).
+    """
     import numpy as np
 
     c = np.arange(2**dim)[:, None]

@@ -1,6 +1,7 @@
 """Boundary conditions: tractions at moving material points, walls, and artificial cells.
 
-Artificial cells (SPEC section 4, the talk's fix for boundary cells), stated precisely:
+Artificial cells (the fix for boundary cells of Bonifasi-Lista, Brannon & Wiskin 2013), stated
+precisely:
 
 - *Where*: ``layers`` cells outside each free (non-wall, non-symmetry) end of the body, each holding
   ``ppc`` artificial particles at the reference positions real particles would have there. In 2D
@@ -11,12 +12,12 @@ Artificial cells (SPEC section 4, the talk's fix for boundary cells), stated pre
 - *How*: ``x`` and ``v`` by a linear least-squares fit in the reference coordinate ``X`` to the
   ``ppc`` real particles of the boundary cell (the two outermost real particles when ``ppc == 1``),
   evaluated at the artificial particle's ``X``. Their gradients ``F = dx/dX`` and ``C = dv/dx`` are
-  the one order lower: the mean over the same particles. A linear motion (the talk's
+  the one order lower: the mean over the same particles. A linear motion (the manufactured
   ``u = beta t X``) is extrapolated exactly; extrapolating ``F`` linearly as well would multiply
   particle-to-particle noise in ``F`` by up to ``2 layers + 1`` and destabilise cpGIMP.
 - *When*: at the start of every step, before particle-to-grid, from the current real particles.
-  The talk extrapolates "at time 0"; doing it every step keeps the layer consistent with a body
-  that has moved.
+  Bonifasi-Lista et al. extrapolate "at time 0"; doing it every step keeps the layer consistent
+  with a body that has moved.
 - *What they do*: they add mass and momentum to the particle-to-grid transfer that defines the nodal
   velocity ``v_i^n``, so that the boundary node sees a symmetric stencil. They carry no stress and
   exert no force: nodal forces come from the real particles and the tractions, and the nodal
@@ -48,13 +49,27 @@ class ArtificialLayer(eqx.Module):
     mean_weights: Float[Array, "n_art n_src"] | None = None
 
     def extrapolate(self, field: Float[Array, "n ..."]) -> Float[Array, "n_art ..."]:
-        """Linear extrapolation (for ``x`` and ``v``): ``sum_s weights[a, s] field[src[a, s]]``."""
+        """Linear extrapolation (for ``x`` and ``v``): ``sum_s weights[a, s] field[src[a, s]]``.
+
+        Args:
+            field: a field of the real particles.
+
+        Returns:
+            Its values at the artificial particles.
+        """
         vals = field[self.src]  # (n_art, n_src, *tail)
         w = self.weights.astype(field.dtype).reshape(self.weights.shape + (1,) * (field.ndim - 1))
         return jnp.sum(w * vals, axis=1)
 
     def mean(self, field: Float[Array, "n ..."]) -> Float[Array, "n_art ..."]:
-        """Constant extrapolation (for the gradients ``F`` and ``C``): the mean over the sources."""
+        """Constant extrapolation (for the gradients ``F`` and ``C``): the mean over the sources.
+
+        Args:
+            field: a field of the real particles.
+
+        Returns:
+            Its values at the artificial particles.
+        """
         if self.mean_weights is None:
             return jnp.mean(field[self.src], axis=1)
         w = self.mean_weights.astype(field.dtype).reshape(self.mean_weights.shape + (1,) * (field.ndim - 1))
@@ -102,7 +117,20 @@ def artificial_layer(
     face, edge and corner cells, so a node at the body's edge or corner also sees a full stencil.
     Each artificial particle is the tensor product of the 1D extrapolations along the axes where it
     lies outside the body (a multilinear fit, exact for the linear ``v = beta X``); its ``F`` is the
-    mean over the same sources. Returns ``None`` when there is nothing to add.
+    mean over the same sources.
+
+    Args:
+        cells: cells of the body along each axis.
+        ppc: particles per cell along each axis.
+        layers: artificial cells outside each free face.
+        sides: whether the low and high faces are free.
+        dim: number of space dimensions.
+
+    Returns:
+        The ``ArtificialLayer``, or ``None`` when there is nothing to add.
+
+    Raises:
+        ValueError: fewer than 2 real particles along an axis to extrapolate from.
     """
     if layers == 0 or not any(sides):
         return None
@@ -164,7 +192,9 @@ class TractionPoints(eqx.Module):
     report: tuple[int, ...] = eqx.field(static=True)
 
 
-def traction_points(cells: int, ppc: int, h, faces: tuple[bool, ...]) -> TractionPoints | None:
+def traction_points(
+    cells: int, ppc: int, h: Float[Array, ""], faces: tuple[bool, ...]
+) -> TractionPoints | None:
     """The traction points of a ``cells^dim`` body: on each loaded face (``faces``: low and high face
     of axis 0, then of axis 1, ...), the particle-domain corners on that face, each carrying its share
     of the face area by the trapezoid rule (``(h / ppc)^(dim - 1)``, halved on an edge of the face
@@ -174,6 +204,15 @@ def traction_points(cells: int, ppc: int, h, faces: tuple[bool, ...]) -> Tractio
     functions that CPDI's and MPQ's domain gradients integrate by parts, so under a uniform stress
     their internal and boundary forces balance node by node, as in 1D; a midpoint rule would not
     once the face has moved off the grid lines.
+
+    Args:
+        cells: cells of the body along each axis.
+        ppc: particles per cell along each axis.
+        h: cell size.
+        faces: whether each face is loaded.
+
+    Returns:
+        The ``TractionPoints``, or ``None`` when no face is loaded.
     """
     dim = len(faces) // 2
     n = cells * ppc
@@ -211,6 +250,16 @@ def fixed_mask(axes: tuple[int, ...], pad: int, cells: int, low: str, high: str)
     At a ``"wall"`` face the node on the face and every node beyond it hold every component; at a
     ``"symmetry"`` plane (a roller) they hold the component normal to the face only, so the body
     slides along it. The same face types apply to every axis. In 1D a symmetry plane is a wall.
+
+    Args:
+        axes: nodes along each axis.
+        pad: nodes of padding before the body along each axis.
+        cells: cells of the body along each axis.
+        low: the type of the low faces (``"free"``, ``"wall"`` or ``"symmetry"``).
+        high: the type of the high faces.
+
+    Returns:
+        The mask, or ``None`` when nothing is held.
     """
     dim = len(axes)
     idx = lattice(axes)

@@ -1,4 +1,4 @@
-"""Gradient-based calibration of the gas's constants from a free-surface trajectory (issue 5).
+"""Gradient-based calibration of the gas's constants from a free-surface trajectory.
 
 The cylinder test calibrates an explosive product's equation of state by fitting a measured wall
 trajectory; here the gas slab's free surface ``x_R(t)`` plays that part. Given observations
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -73,7 +73,18 @@ class Fit:
 
 
 def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, dt, **kwargs) -> jax.Array:
-    """The free-surface position at times ``ts`` (linear between steps), from one run of ``dt`` steps."""
+    """The free-surface position at times ``ts`` (linear between steps), from one run of ``dt`` steps.
+
+    Args:
+        scene: the scene (a ``GasSlab``).
+        interpolator: the MPM method.
+        ts: the times (``>= 0``).
+        dt: the time step.
+        **kwargs: passed to ``simulate``.
+
+    Returns:
+        ``x_R(ts)`` (``scenes.gas_slab.free_surface``), NaN everywhere when the run broke down.
+    """
     ts = jnp.asarray(ts)
     steps = int(np.ceil(float(np.max(np.asarray(ts))) / float(dt) - 1e-9))
     fields = ("x", "F", "corners") if interpolator.tracks_corners else ("x", "F")
@@ -126,7 +137,8 @@ def calibrate(
     Args:
         scene: the scene; parameters not fitted keep its values.
         interpolator: the MPM method of the model.
-        t_data, x_data: observation times (``t >= 0``) and free-surface positions.
+        t_data: observation times (``t >= 0``).
+        x_data: the free-surface positions observed at them.
         fit: the names to fit (e.g. ``("gamma", "P0")``, optionally with ``"rho0"``).
         starts: one dict or a list of dicts of start values (missing names start at the scene's
             values); several starts run at once under ``vmap``.
@@ -140,6 +152,11 @@ def calibrate(
 
     Returns:
         A ``Fit``.
+
+    Raises:
+        ValueError: bad input (names that are not continuous parameters, ``dt``, an unknown method,
+            data of mismatched shapes).
+        CalibrationError: every start broke down.
     """
     names = tuple(fit)
     check_names(scene, names)
@@ -281,14 +298,24 @@ def _why(scene, interpolator, trial, t_data, dt, simulate_kwargs) -> str:
     )
 
 
-def to_physical_batch(to_physical, theta, start_vals):
+def to_physical_batch(to_physical: Callable, theta: jax.Array, start_vals: dict) -> dict:
+    """Every start's physical values from its ``theta``.
+
+    Args:
+        to_physical: the change of variables ``(theta, start) -> {name: value}``.
+        theta: one row of ``theta`` per start.
+        start_vals: name to the start values, one per start.
+
+    Returns:
+        Name to the physical values, one per start.
+    """
     return jax.vmap(to_physical)(theta, start_vals)
 
 
 def _bar(progress, total):
-    from .long_run import _show_progress
+    from .long_run import show_progress
 
-    if not _show_progress(progress):
+    if not show_progress(progress):
         return None
     from tqdm.auto import tqdm
 

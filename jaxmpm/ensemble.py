@@ -25,7 +25,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import status as st_bits
-from ._simulate import Solution, _prepare, _run, checkpoint_block
+from ._simulate import Solution, checkpoint_block, prepare, run_scan
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .sensitivity import check_names
@@ -49,10 +49,16 @@ class Ensemble:
 
     @property
     def ok(self) -> np.ndarray:
+        """Whether each member ran to the end (status 0)."""
         return self.status == 0
 
     def failures(self) -> list[dict]:
-        """One dict per member that broke down: member, step, particle, quantities and its parameters."""
+        """The members that broke down.
+
+        Returns:
+            One dict per such member: ``member``, ``step``, ``particle``, ``quantities`` and its
+            ``params``.
+        """
         out = []
         st = self.solution.state
         for i in np.flatnonzero(self.status):
@@ -68,11 +74,19 @@ class Ensemble:
         return out
 
     def member(self, i: int) -> Solution:
-        """Member ``i``'s solution (as ``simulate`` would return it)."""
+        """One member's solution.
+
+        Args:
+            i: the member.
+
+        Returns:
+            Member ``i``'s ``Solution``, as ``simulate`` would return it.
+        """
         return jax.tree_util.tree_map(lambda a: a[i], self.solution)
 
 
 RUN_NAMES = ("dt", "t_end", "cfl")
+"""The run's own continuous inputs that ``vary`` may name besides the scene's parameters."""
 
 
 @eqx.filter_jit
@@ -89,7 +103,7 @@ def _run_batch(model, dt, batch: dict, steps: int, saveat, block):
             d = eqx.tree_at(
                 lambda z: (z.t_end, z.cfl), dt, (values.get("t_end", dt.t_end), values.get("cfl", dt.cfl))
             )
-        return _run(m, d, steps, saveat, block)
+        return run_scan(m, d, steps, saveat, block)
 
     return jax.vmap(one)(batch)
 
@@ -120,6 +134,10 @@ def ensemble(
 
     Returns:
         An ``Ensemble``.
+
+    Raises:
+        ValueError: bad ``vary`` (unknown or structural names, arrays of different lengths, values
+            that are not finite) or bad run arguments.
     """
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
@@ -138,7 +156,7 @@ def ensemble(
     if bad:
         raise ValueError(f"vary values must be finite; not finite in {bad}")
     simulate_kwargs.pop("throw", None)
-    model, dt, steps, saveat = _prepare(scene, interpolator, **simulate_kwargs)
+    model, dt, steps, saveat = prepare(scene, interpolator, **simulate_kwargs)
     block = checkpoint_block(simulate_kwargs.get("checkpoint", False), steps)
 
     devices = list(jax.local_devices() if devices is None else devices)

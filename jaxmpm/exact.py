@@ -1,5 +1,5 @@
 """Exact solutions of the 1D adiabatic gas problems: the isentropic Riemann problem and the expansion
-into vacuum (SPEC 6.5). Pure JAX functions of their parameters, so they vmap and differentiate.
+into vacuum. Pure JAX functions of their parameters, so they vmap and differentiate.
 
 The gas is ``P = P0 F^-gamma - p_atm`` in the Lagrangian description (unit cross-section):
 
@@ -17,12 +17,32 @@ import jax.numpy as jnp
 
 
 def sound_speed(F, P0, gamma, rho0):
-    """Eulerian sound speed ``c = sqrt(gamma P0 F^(1-gamma) / rho0)``."""
+    """Eulerian sound speed of the gas.
+
+    Args:
+        F: stretch.
+        P0: the gas's pressure at ``F = 1``.
+        gamma: its adiabatic exponent.
+        rho0: its initial density.
+
+    Returns:
+        ``c = sqrt(gamma P0 F^(1-gamma) / rho0)``.
+    """
     return jnp.sqrt(gamma * P0 * F ** (1.0 - gamma) / rho0)
 
 
 def lagrangian_speed(F, P0, gamma, rho0):
-    """Lagrangian wave speed ``C = c / F`` (reference length per time)."""
+    """Lagrangian wave speed (reference length per time).
+
+    Args:
+        F: stretch.
+        P0: the gas's pressure at ``F = 1``.
+        gamma: its adiabatic exponent.
+        rho0: its initial density.
+
+    Returns:
+        ``C = c / F``.
+    """
     return sound_speed(F, P0, gamma, rho0) / F
 
 
@@ -45,6 +65,19 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
     derivatives follow the implicit function theorem. Raise nothing: when the data pull apart faster
     than ``g(F_L) + g(F_R)`` a vacuum forms and ``F*`` runs to the top of the bracket; check
     ``vacuum_forms`` first.
+
+    Args:
+        F_L: deformation gradient of the left state.
+        v_L: velocity of the left state.
+        F_R: deformation gradient of the right state.
+        v_R: velocity of the right state.
+        P0: the gas's pressure at ``F = 1``.
+        gamma: its adiabatic exponent.
+        rho0: its initial density.
+        iterations: bisection steps.
+
+    Returns:
+        ``(F_star, v_star)``.
     """
 
     def f(y):
@@ -68,7 +101,20 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
 
 
 def vacuum_forms(F_L, v_L, F_R, v_R, P0, gamma, rho0):
-    """Whether the data pull apart faster than the gas can follow (no star state of finite F)."""
+    """Whether the data pull apart faster than the gas can follow (no star state of finite F).
+
+    Args:
+        F_L: as for ``riemann_star``.
+        v_L: as for ``riemann_star``.
+        F_R: as for ``riemann_star``.
+        v_R: as for ``riemann_star``.
+        P0: as for ``riemann_star``.
+        gamma: as for ``riemann_star``.
+        rho0: as for ``riemann_star``.
+
+    Returns:
+        ``v_R - v_L >= g(F_L) + g(F_R)``.
+    """
     g = 2.0 / (gamma - 1.0)
     c = lambda F: sound_speed(F, P0, gamma, rho0)
     return v_R - v_L >= g * (c(F_L) + c(F_R))
@@ -80,6 +126,15 @@ def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
     Returns a dict with ``F_star, v_star`` and ``a1 <= b1 < 0 < a2 <= b2``: the left wave spans
     ``a1 <= (X - X0)/t <= b1`` (a rarefaction fan, or a shock where ``a1 == b1``), the right wave
     ``a2 .. b2``; ``rare1``, ``rare2`` say which waves are rarefactions.
+
+    Args:
+        F_L: as for ``riemann_star``.
+        v_L: as for ``riemann_star``.
+        F_R: as for ``riemann_star``.
+        v_R: as for ``riemann_star``.
+        P0: as for ``riemann_star``.
+        gamma: as for ``riemann_star``.
+        rho0: as for ``riemann_star``.
     """
     F_s, v_s = riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     C = lambda F: lagrangian_speed(F, P0, gamma, rho0)
@@ -109,6 +164,19 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
 
     ``D(xi) = int_{-inf}^{xi} (F - F_0) dxi'``, with ``F_0`` the initial data, gives positions:
     ``x(X, t) = x(X, 0) + v_L t + t D(xi)`` (while the waves have not reached the ends).
+
+    Args:
+        xi: the similarity variable(s).
+        F_L: as for ``riemann_star``.
+        v_L: as for ``riemann_star``.
+        F_R: as for ``riemann_star``.
+        v_R: as for ``riemann_star``.
+        P0: as for ``riemann_star``.
+        gamma: as for ``riemann_star``.
+        rho0: as for ``riemann_star``.
+
+    Returns:
+        ``(F, v, D)`` at ``xi``.
     """
     w = riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     a1, b1, a2, b2, F_s, v_s = w["a1"], w["b1"], w["a2"], w["b2"], w["F_star"], w["v_star"]
@@ -148,12 +216,24 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
 
 
 def vacuum_expansion(X, t, L, P0, gamma, rho0):
-    """Gas at rest on ``[0, L]`` expanding into vacuum from ``X = L`` (SPEC 6.5): ``(x, v, F)``.
+    """Gas at rest on ``[0, L]`` expanding into vacuum from ``X = L``: ``(x, v, F)``.
 
     A material point is at rest until the rarefaction head reaches it at ``t_h = (L - X) / c0``;
     then ``x = L + eta t``, ``eta = (2 c0 - (gamma+1) c0 s) / (gamma - 1)``, ``s = (t/t_h)^-k``,
     ``k = (gamma-1)/(gamma+1)``, so ``v = 2 c0 (1 - s) / (gamma - 1)`` and ``F = (t / t_h)^(2/(gamma+1))``.
     Valid until the head reaches the wall, ``t <= L / c0``. At the front (``X = L``) ``F`` is infinite.
+    (The rarefaction into vacuum of Toro, ch. 4, in Lagrangian form.)
+
+    Args:
+        X: reference position(s).
+        t: time.
+        L: the gas's initial length.
+        P0: the gas's pressure at ``F = 1``.
+        gamma: its adiabatic exponent.
+        rho0: its initial density.
+
+    Returns:
+        ``(x, v, F)``: position, velocity and the point value of ``F``.
     """
     c0 = jnp.sqrt(gamma * P0 / rho0)
     t_h = (L - X) / c0

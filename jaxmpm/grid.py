@@ -39,12 +39,22 @@ class Grid(eqx.Module):
 
     @classmethod
     def box(cls, x_min: Float[Array, " dim"], h: Float[Array, ""], shape: tuple[int, ...]) -> "Grid":
-        """A grid of ``shape[a]`` nodes along axis ``a`` (``shape`` of length ``dim``)."""
+        """A grid of ``shape[a]`` nodes along axis ``a``.
+
+        Args:
+            x_min: position of node 0.
+            h: node spacing.
+            shape: nodes along each axis (length ``dim``).
+
+        Returns:
+            The ``Grid``.
+        """
         shape = tuple(int(s) for s in shape)
         return cls(x_min=x_min, h=h, n_nodes=math.prod(shape), shape=None if len(shape) == 1 else shape)
 
     @property
     def dim(self) -> int:
+        """Number of space dimensions."""
         return self.x_min.shape[0]
 
     @property
@@ -59,6 +69,7 @@ class Grid(eqx.Module):
 
     @property
     def x_max(self) -> Float[Array, " dim"]:
+        """Position of the last node along each axis."""
         if self.shape is None:
             return self.x_min + (self.n_nodes - 1) * self.h
         return self.x_min + jnp.asarray([n - 1 for n in self.shape], dtype=self.h.dtype) * self.h
@@ -76,15 +87,30 @@ class Grid(eqx.Module):
 
         The fraction carries the derivative with respect to ``x``, ``x_min`` and ``h``; the index
         is piecewise constant (its derivative is zero, so derivatives are one-sided at nodes).
+
+        Args:
+            x: coordinates along ``axis``.
+            axis: the axis.
+
+        Returns:
+            ``(index, fraction)``.
         """
         xi = (x - self.x_min[axis]) / self.h
         base = jnp.floor(xi)
         return base.astype(jnp.int32), xi - base
 
     def flat_index(self, idx: list[Int[Array, "..."]]) -> Int[Array, "..."]:
-        """The flat index of per-axis node indices (broadcast together); a node off the grid along any
-        axis gets ``n_nodes``, which scatters drop and gathers read as zero (it must not alias a node
-        of the next row)."""
+        """The flat index of per-axis node indices (broadcast together).
+
+        A node off the grid along any axis gets ``n_nodes``, which scatters drop and gathers read as
+        zero (it must not alias a node of the next row).
+
+        Args:
+            idx: one array of node indices per axis.
+
+        Returns:
+            The flat indices.
+        """
         if len(idx) == 1:
             return idx[0]
         flat, valid = 0, True
@@ -98,6 +124,13 @@ class Grid(eqx.Module):
 
         A particle whose stencil leaves the grid is flagged by the step's status check, so a drop
         never passes silently.
+
+        Args:
+            idx: node indices.
+            values: one value (scalar or array) per index.
+
+        Returns:
+            The nodal field.
         """
         tail = values.shape[2:]
         flat_idx = idx.reshape(-1)
@@ -106,5 +139,13 @@ class Grid(eqx.Module):
         return out.at[flat_idx].add(flat_val, mode="drop")
 
     def gather(self, idx: Int[Array, "n k"], field: Float[Array, "n_nodes ..."]) -> Float[Array, "n k ..."]:
-        """Node values of ``field`` at ``idx`` (out-of-grid indices read zero)."""
+        """Node values of ``field`` at ``idx`` (out-of-grid indices read zero).
+
+        Args:
+            idx: node indices.
+            field: a nodal field.
+
+        Returns:
+            ``field[idx]``.
+        """
         return field.at[idx].get(mode="fill", fill_value=0.0)

@@ -25,6 +25,7 @@ The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import json
 import os
@@ -39,35 +40,25 @@ import numpy as np
 
 from . import status as st_bits
 from ._checks import check_int
-from ._simulate import SaveAt, SimulationError, Solution, _message, _prepare, _save, advance
+from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
 from ._step import initial_state, setup
-from .interpolators import CPDI, GIMP, MPQ, SPQ
+from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import State
-from .scenes import SCENES
+from .scenes import SCENES, AbstractScene
 from .transfers import TRANSFERS
 
 FORMAT = "jaxmpm-run"
+"""The ``format`` a saved run's metadata carries."""
 FORMAT_VERSION = 1
-STATE_NAMES = (
-    "t",
-    "step",
-    "x",
-    "v",
-    "F",
-    "sigma",
-    "C",
-    "corners",
-    "x_traction",
-    "status",
-    "fail_step",
-    "fail_particle",
-)
+"""The version of the file format this jaxmpm writes (and the newest it reads)."""
+STATE_NAMES = tuple(f.name for f in dataclasses.fields(State))
+"""Every ``State`` field, each saved as ``state.<name>`` where the run has it."""
 
 
 @eqx.filter_jit
 def _start(model):
-    s = setup(model)
-    return initial_state(model, s), s.body
+    prepared = setup(model)
+    return initial_state(model, prepared), prepared.body
 
 
 @eqx.filter_jit
@@ -75,7 +66,17 @@ def _chunk(model, dt, state, limit, n: int, saveat: SaveAt):
     return advance(model, setup(model), state, dt, n, saveat, None, limit)
 
 
-def _show_progress(progress: bool | None) -> bool:
+def show_progress(progress: bool | None) -> bool:
+    """Whether to show a progress bar.
+
+    Args:
+        progress: ``True`` or ``False`` to decide, or ``None``: the environment variable
+            ``JAXMPM_PROGRESS`` (``0``, ``false``, ``no`` or empty for no) if set, else a bar in a
+            notebook or on a terminal and none in pipes or CI.
+
+    Returns:
+        Whether to show it.
+    """
     if progress is not None:
         return progress
     env = os.environ.get("JAXMPM_PROGRESS")
@@ -98,22 +99,18 @@ def _progress_bar(total: int, initial: int, enabled: bool):
     )
 
 
-def _interpolator_meta(interp) -> dict:
-    if isinstance(interp, GIMP):
-        return dict(name=interp.name, contiguous=interp.contiguous, max_span=interp.max_span)
-    return dict(name=interp.name)
+def _interpolator_meta(interp: AbstractInterpolator) -> dict:
+    """The interpolator's registry name and its options (its static fields), for a saved run."""
+    return dict(name=interp.name, **{f.name: getattr(interp, f.name) for f in dataclasses.fields(interp)})
 
 
-def _interpolator_from(meta: dict):
-    name = meta["name"]
-    if name in ("gimp", "cpgimp"):
-        return GIMP(contiguous=meta.get("contiguous", name == "cpgimp"), max_span=meta.get("max_span", 1))
-    return {"spq": SPQ, "cpdi": CPDI, "mpq": MPQ}[name]()
+def _interpolator_from(meta: dict) -> AbstractInterpolator:
+    """The interpolator of ``_interpolator_meta``, rebuilt from the registry ``INTERPOLATORS``."""
+    options = {k: v for k, v in meta.items() if k != "name"}
+    return INTERPOLATORS[meta["name"]](**options)
 
 
 def _scene_params(scene) -> dict:
-    import dataclasses
-
     named = scene.parameters()
     for f in dataclasses.fields(scene):
         if f.name not in named and getattr(scene, f.name) is not f.default:
@@ -214,7 +211,7 @@ def _drive(
     compiled = _chunk.lower(model, dt_arr, state, limit, chunk, saveat).compile()  # once, for every chunk
     t_start = time.perf_counter()
     compile_s = t_start - t_compile
-    bar = _progress_bar(steps, done, _show_progress(progress))
+    bar = _progress_bar(steps, done, show_progress(progress))
     chunks_done = 0
     try:
         while done < steps and int(state.status) == 0:
@@ -241,18 +238,31 @@ def _drive(
     sol = rec.solution(state)
     if int(state.status) and throw:
         where = f" Everything up to it is saved in {out}." if out is not None else ""
-        raise SimulationError(_message(sol, dt) + where, sol)
+        raise SimulationError(failure_message(sol, dt) + where, sol)
     return sol, compile_s, wall_s
 
 
-def run(scene, interpolator, **kwargs) -> Solution:
-    """``simulate`` in chunks, with progress, checkpoints and a saved result (see ``run_timed``)."""
+def run(scene: AbstractScene, interpolator: AbstractInterpolator, **kwargs) -> Solution:
+    """``simulate`` in chunks, with progress, checkpoints and a saved result.
+
+    Args:
+        scene: as for ``run_timed``.
+        interpolator: as for ``run_timed``.
+        **kwargs: as for ``run_timed``.
+
+    Returns:
+        The ``Solution``.
+
+    Raises:
+        ValueError: bad input, before anything is traced.
+        SimulationError: the run broke down (after saving it, with ``out``).
+    """
     return run_timed(scene, interpolator, **kwargs)[0]
 
 
 def run_timed(
-    scene,
-    interpolator,
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
     *,
     dt,
     steps: int,
@@ -270,8 +280,15 @@ def run_timed(
     """``simulate`` in chunks of ``chunk`` steps, with progress, checkpoints and a saved result.
 
     Args:
-        scene, interpolator, dt, steps, transfer, artificial_cells, saveat, cfl_limit, ordering:
-            as for ``simulate``. With ``saveat.every``, ``chunk`` must be a multiple of it.
+        scene: as for ``simulate``.
+        interpolator: as for ``simulate``.
+        dt: as for ``simulate``.
+        steps: as for ``simulate``.
+        transfer: as for ``simulate``.
+        artificial_cells: as for ``simulate``.
+        saveat: as for ``simulate``. With ``saveat.every``, ``chunk`` must be a multiple of it.
+        cfl_limit: as for ``simulate``.
+        ordering: as for ``simulate``.
         chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end).
         out: a ``.npz`` file to write the run to (at the end, at checkpoints, and on breakdown).
         checkpoint_every: write ``out`` every this many chunks (``None``: only at the end).
@@ -283,13 +300,17 @@ def run_timed(
     Returns:
         ``(solution, compile_s, wall_s)``: the ``Solution`` (the same state as ``simulate`` gives),
         the time of the chunk's one compilation, and the time of everything after it.
+
+    Raises:
+        ValueError: bad input, before anything is traced.
+        SimulationError: the run broke down (after saving it, with ``out``).
     """
     check_int("chunk", chunk, 1)
     if checkpoint_every is not None:
         check_int("checkpoint_every", checkpoint_every, 1)
         if out is None:
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
-    model, dt_arr, _, saveat = _prepare(
+    model, dt_arr, _, saveat = prepare(
         scene,
         interpolator,
         dt=dt,
@@ -323,7 +344,7 @@ def run_timed(
     )
     history = ts = None
     if saveat.every is not None:
-        first = jax.device_get(_save(state, saveat.fields))
+        first = jax.device_get(save_fields(state, saveat.fields))
         history = {k: [np.asarray(v)] for k, v in first.items()}
         ts = [0.0]
     rec = _Recorder(meta, body, history, ts)
@@ -343,7 +364,18 @@ def run_timed(
 
 
 def load(path: str | os.PathLike) -> tuple[Solution, dict]:
-    """Read a run saved by ``run`` (or ``resume``): its ``Solution`` and its ``meta`` dict."""
+    """Read a run saved by ``run`` (or ``resume``).
+
+    Args:
+        path: the saved run.
+
+    Returns:
+        ``(solution, meta)``: its ``Solution`` and its ``meta`` dict (see the module's docstring).
+
+    Raises:
+        FileNotFoundError: no file at ``path``.
+        ValueError: the file is not a jaxmpm run, or was written by a newer jaxmpm.
+    """
     sol, meta, _ = _load(pathlib.Path(path))
     return sol, meta
 
@@ -362,7 +394,7 @@ def _load(path: pathlib.Path):
         arrays = {k: f[k] for k in f.files if k != "meta"}
     scene = SCENES[meta["scene"]](**meta["params"])
     interp = _interpolator_from(meta["interpolator"])
-    model, dt_arr, _, saveat = _prepare(
+    model, dt_arr, _, saveat = prepare(
         scene,
         interp,
         dt=meta["dt"],
@@ -417,12 +449,37 @@ def resume(
         out: where to keep writing (default: ``path`` itself).
         progress: as for ``run``.
         throw: as for ``run``.
+
+    Returns:
+        The ``Solution`` of the whole run.
+
+    Raises:
+        SimulationError: the run broke down (now or before it was saved).
     """
     return resume_timed(path, out=out, progress=progress, throw=throw)[0]
 
 
-def resume_timed(path, *, out=None, progress: bool | None = None, throw: bool = True):
-    """``resume``, returning ``(solution, compile_s, wall_s, meta)``."""
+def resume_timed(
+    path: str | os.PathLike,
+    *,
+    out: str | os.PathLike | None = None,
+    progress: bool | None = None,
+    throw: bool = True,
+) -> tuple[Solution, float, float, dict]:
+    """``resume``, timed.
+
+    Args:
+        path: as for ``resume``.
+        out: as for ``resume``.
+        progress: as for ``resume``.
+        throw: as for ``resume``.
+
+    Returns:
+        ``(solution, compile_s, wall_s, meta)``: as ``run_timed``, and the saved run's ``meta``.
+
+    Raises:
+        SimulationError: the run broke down (now or before it was saved).
+    """
     path = pathlib.Path(path)
     sol, meta, (model, dt_arr, saveat, state, rec) = _load(path)
     out = path if out is None else pathlib.Path(out)

@@ -20,15 +20,37 @@ class AbstractMaterial(eqx.Module):
 
     @abc.abstractmethod
     def stress(self, F: Float[Array, "dim dim"]) -> Float[Array, "dim dim"]:
-        """Cauchy stress of one particle."""
+        """Cauchy stress of one particle.
+
+        Args:
+            F: deformation gradient.
+
+        Returns:
+            The Cauchy stress ``sigma(F)``.
+        """
 
     @abc.abstractmethod
     def energy_density(self, F: Float[Array, "dim dim"]) -> Float[Array, ""]:
-        """Stored energy per unit reference volume (``dW/dF`` is the first Piola stress)."""
+        """Stored energy per unit reference volume (``dW/dF`` is the first Piola stress).
+
+        Args:
+            F: deformation gradient of one particle.
+
+        Returns:
+            ``W(F)``.
+        """
 
     @abc.abstractmethod
     def sound_speed(self, F: Float[Array, "dim dim"], rho0: Float[Array, ""]) -> Float[Array, ""]:
-        """Eulerian wave speed, used by the stable time step ``dt <= CFL h / max(c + |v|)``."""
+        """Eulerian wave speed, used by the stable time step ``dt <= CFL h / max(c + |v|)``.
+
+        Args:
+            F: deformation gradient of one particle.
+            rho0: initial density.
+
+        Returns:
+            The largest longitudinal wave speed of the state ``F``.
+        """
 
     def acoustic_speed(self, F: Float[Array, "dim dim"], rho0: Float[Array, ""]) -> Float[Array, ""]:
         """The largest longitudinal wave speed of the state ``F``, from the stored energy alone.
@@ -38,6 +60,13 @@ class AbstractMaterial(eqx.Module):
         F F^T`` (Marsden & Hughes, "Mathematical foundations of elasticity", ch. 6). In 1D it is
         ``F sqrt(W''(F) / rho0)``, the closed forms of the 1D models; in 2D and 3D it serves models
         without one (a Hessian of ``W`` and two small eigenproblems per particle).
+
+        Args:
+            F: deformation gradient of one particle.
+            rho0: initial density.
+
+        Returns:
+            The Eulerian wave speed ``c``.
         """
         H = jax.hessian(self.energy_density)(F)  # (dim, dim, dim, dim): d2W / dF_iJ dF_kL
         _, N = jnp.linalg.eigh(F @ F.T)
@@ -49,17 +78,25 @@ class AbstractMaterial(eqx.Module):
 
         return jnp.sqrt(jnp.maximum(jnp.max(jax.vmap(c2, in_axes=1)(N)), 0.0))
 
+    @abc.abstractmethod
     def sound_speed_from_stress(
         self, F: Float[Array, "dim dim"], sigma: Float[Array, "dim dim"], rho0: Float[Array, ""]
     ) -> Float[Array, ""]:
         """``sound_speed(F, rho0)`` given also ``sigma = stress(F)``, which a model may reuse to skip
-        work (the gas: a power of ``J``). The step's stability check calls it every step."""
-        del sigma
-        return self.sound_speed(F, rho0)
+        work (the gas: a power of ``J``). The step's stability check calls it every step.
+
+        Args:
+            F: deformation gradient of one particle.
+            sigma: its Cauchy stress, ``stress(F)``.
+            rho0: initial density.
+
+        Returns:
+            The Eulerian wave speed, equal to ``sound_speed(F, rho0)``.
+        """
 
 
 class AdiabaticGas(AbstractMaterial):
-    """Adiabatic gas of the talk: ``P = P0 J^-gamma - p_atm``, ``sigma = -P I`` (SPEC section 5).
+    """Adiabatic gas: ``P = P0 J^-gamma - p_atm``, ``sigma = -P I`` (Bonifasi-Lista, Brannon & Wiskin 2013).
 
     ``J = det F``. The sound speed is ``c = sqrt(gamma P0 J^(1 - gamma) / rho0)``; the stored
     energy ``W = P0 (J^(1-gamma) - 1) / (gamma - 1) + p_atm (J - 1)`` has ``dW/dJ = -P``.
@@ -79,7 +116,15 @@ class AdiabaticGas(AbstractMaterial):
         check_greater("gamma", self.gamma, 1.0)
         check_nonnegative("p_atm", self.p_atm)
 
-    def pressure(self, J: Float[Array, "..."]) -> Float[Array, "..."]:
+    def pressure(self, J: Float[Array, "*batch"]) -> Float[Array, "*batch"]:
+        """The gauge pressure ``P = P0 J^-gamma - p_atm``.
+
+        Args:
+            J: volume ratios ``det F``.
+
+        Returns:
+            ``P`` at each ``J``.
+        """
         return self.P0 * J ** (-self.gamma) - self.p_atm
 
     def stress(self, F):
@@ -104,7 +149,7 @@ class LinearElastic(AbstractMaterial):
     """Linear elastic solid, small strain: ``sigma = lambda tr(eps) I + 2 mu eps``, ``eps = sym(F) - I``.
 
     ``lambda = E nu / ((1 + nu)(1 - 2 nu))`` and ``mu = E / (2 (1 + nu))``. With the default
-    ``nu = 0`` the 1D bar of SPEC 5 follows exactly: ``sigma = E (F - 1)``, ``c = sqrt(E / rho0)``.
+    ``nu = 0`` the 1D bar follows exactly: ``sigma = E (F - 1)``, ``c = sqrt(E / rho0)``.
     The wave speed is the P-wave speed ``sqrt((lambda + 2 mu) / rho0)``, independent of ``F`` (the
     model is meant for small strains, where Cauchy, first Piola and the linear stress agree).
 
@@ -121,8 +166,12 @@ class LinearElastic(AbstractMaterial):
         check_nonnegative("nu", self.nu)
         check_less("nu", self.nu, 0.5)
 
-    def lame(self):
-        """``(lambda, mu)``."""
+    def lame(self) -> tuple[Float[Array, ""], Float[Array, ""]]:
+        """The Lame parameters from ``E`` and ``nu``.
+
+        Returns:
+            ``(lambda, mu)``, ``lambda = E nu / ((1 + nu)(1 - 2 nu))`` and ``mu = E / (2 (1 + nu))``.
+        """
         lam = self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
         return lam, self.E / (2.0 * (1.0 + self.nu))
 
@@ -143,6 +192,10 @@ class LinearElastic(AbstractMaterial):
         del F
         lam, mu = self.lame()
         return jnp.sqrt((lam + 2.0 * mu) / rho0)
+
+    def sound_speed_from_stress(self, F, sigma, rho0):
+        del sigma
+        return self.sound_speed(F, rho0)
 
 
 class NeoHookean(AbstractMaterial):
@@ -186,3 +239,7 @@ class NeoHookean(AbstractMaterial):
         # softens) only for ln F > 1 + mu / lambda, where the speed is taken as zero.
         stiffness = self.lam * (1.0 - jnp.log(f)) / (f * f) + self.mu * (1.0 + 1.0 / (f * f))
         return f * jnp.sqrt(jnp.maximum(stiffness, 0.0) / rho0)
+
+    def sound_speed_from_stress(self, F, sigma, rho0):
+        del sigma
+        return self.sound_speed(F, rho0)

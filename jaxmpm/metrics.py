@@ -1,16 +1,14 @@
-"""Errors and diagnostics over the real particles (SPEC section 7)."""
+"""Errors and diagnostics over the real particles: errors against an exact solution, the domain
+separation of neighbours, and the totals of mass, momentum and energy."""
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .interpolators.cpdi import parallelogram_corners
-from .particles import Body, State
+from .particles import Body, State, parallelogram_corners
 from .scenes import AbstractScene
 
-# The errors against an exact solution (``None`` for a scene without one); the interior ones are also
-# ``None`` for a body with no interior cell (cells <= 2: every particle is in a boundary cell).
 EXACT_ERRORS = (
     "F_max_rel",
     "F_rms_rel",
@@ -24,18 +22,38 @@ EXACT_ERRORS = (
     "v_rms_abs",
     "sigma_max_abs",
 )
+"""The errors against an exact solution (``None`` for a scene without one)."""
 INTERIOR_ERRORS = ("F_max_rel_interior", "F_rms_rel_interior")
+"""The errors also ``None`` for a body with no interior cell (cells <= 2: every particle is in a
+boundary cell)."""
 
 
 def available_errors(scene: AbstractScene) -> tuple[str, ...]:
-    """The names ``errors`` gives a number for (not ``None``) on ``scene``."""
+    """The names ``errors`` gives a number for (not ``None``) on ``scene``.
+
+    Args:
+        scene: the scene.
+
+    Returns:
+        The names of its finite errors.
+    """
     if scene.exact is None:
         return ("separation_max",)
     return ("separation_max",) + tuple(k for k in EXACT_ERRORS if scene.cells > 2 or k not in INTERIOR_ERRORS)
 
 
-def exact_fields(scene: AbstractScene, body: Body, t) -> dict[str, Array] | None:
-    """The exact ``x, v, F, sigma`` at every real particle's ``X`` at time ``t`` (or ``None``)."""
+def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> dict[str, Array] | None:
+    """The exact fields at every real particle.
+
+    Args:
+        scene: the scene.
+        body: the reference configuration.
+        t: time.
+
+    Returns:
+        ``dict(x, v, F, sigma)`` at every particle's ``X`` at time ``t``, each with a leading
+        particle axis; ``None`` for a scene with no exact solution.
+    """
     if scene.exact is None:
         return None
     return _exact_fields(scene, body.X, t)
@@ -48,24 +66,47 @@ def _exact_fields(scene, X, t):
 
 
 def implied_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
-    """Each particle's domain corners as its ``x`` and ``F`` imply them, ``x_p + F diag(r0) s_c``
-    (CPDI's parallelogram; in 1D ``x_p -/+ F r0``)."""
+    """Each particle's domain corners as its ``x`` and ``F`` imply them.
+
+    Args:
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        ``x_p + F diag(r0) s_c`` (``particles.parallelogram_corners``; in 1D ``x_p -/+ F r0``).
+    """
     return parallelogram_corners(body.r0, state.x, state.F)
 
 
 def domain_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
-    """Each particle's own domain corners: MPQ's tracked corners where the run tracks them (shared
-    by neighbours, stored once), else those ``x`` and ``F`` imply (``implied_corners``)."""
+    """Each particle's own domain corners.
+
+    Args:
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        MPQ's tracked corners where the run tracks them (one copy for all the particles that meet
+        at a corner), else those ``x`` and ``F`` imply (``implied_corners``).
+    """
     if state.corners is not None:
         return body.particle_corners(state.corners)
     return implied_corners(state, body)
 
 
 def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Array, " nc"]:
-    """How far apart the particles' copies of each shared corner are: at every corner of the
-    reference lattice, the largest distance of a particle's copy from the copies' mean, over the
+    """How far apart the particles' copies of each corner of the reference lattice are.
+
+    At every corner, the largest distance of a particle's copy from the copies' mean, over the
     half-length ``r0``. Zero where neighbouring domains meet (MPQ's tracked corners, always); in 1D
     the magnitude of ``separation``. A gap and an overlap both count.
+
+    Args:
+        corners: each particle's corners (``domain_corners``).
+        body: the reference configuration.
+
+    Returns:
+        The gap at each corner of ``body.X_corners``.
     """
     return _safe_sqrt(_corner_gap_sq(corners, body))
 
@@ -81,10 +122,21 @@ def _corner_gap_sq(corners, body):
 
 
 def separation(state: State, body: Body) -> Float[Array, " n_minus_1"]:
-    """Domain separation of neighbours, ``(x_{p+1} - x_p - (F_{p+1} + F_p) r0) / (2 r0)`` (SPEC 3).
+    """Domain separation of neighbours, ``(x_{p+1} - x_p - (F_{p+1} + F_p) r0) / (2 r0)``.
 
-    Zero when neighbouring domains touch; positive for a gap, negative for an overlap. 1D; in 2D
-    and 3D use ``corner_gap``.
+    The violation of the consistency condition between neighbours ``x_{p+1} - x_p = (F_{p+1} + F_p)
+    r0`` (Bonifasi-Lista, Brannon & Wiskin 2013): zero when neighbouring domains touch; positive for
+    a gap, negative for an overlap. 1D; in 2D and 3D use ``corner_gap``.
+
+    Args:
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        The separation of each pair of neighbours.
+
+    Raises:
+        ValueError: the run is not 1D.
     """
     if state.x.shape[1] != 1:
         raise ValueError("separation is the 1D diagnostic; in 2D and 3D use corner_gap")
@@ -121,15 +173,24 @@ def _max_rms(sq, mask=None):
     )
 
 
-def smooth_mask(scene: AbstractScene, body: Body, t) -> Array | None:
-    """The particles away from fronts (``scene.smooth``), or ``None`` for a scene smooth everywhere."""
+def smooth_mask(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> Bool[Array, " n"] | None:
+    """The particles away from fronts (``scene.smooth``).
+
+    Args:
+        scene: the scene.
+        body: the reference configuration.
+        t: time.
+
+    Returns:
+        One bool per particle, or ``None`` for a scene smooth everywhere.
+    """
     if scene.smooth is None:
         return None
     return jax.vmap(scene.smooth, in_axes=(0, None))(body.X, t)
 
 
 def errors(
-    scene: AbstractScene, state: State, body: Body, where: Array | None = None
+    scene: AbstractScene, state: State, body: Body, where: Bool[Array, " n"] | None = None
 ) -> dict[str, Array | None]:
     """Errors against the scene's exact solution, over real particles only.
 
@@ -144,6 +205,15 @@ def errors(
     ``x`` and ``F`` imply.
 
     Every entry is differentiable, with derivative 0 (not NaN) where an error is exactly zero.
+
+    Args:
+        scene: the scene.
+        state: the state.
+        body: the reference configuration.
+        where: one bool per particle, or ``None`` for all.
+
+    Returns:
+        Error name (``"separation_max"`` and ``EXACT_ERRORS``) to value or ``None``.
     """
     n = body.n
     if state.x.shape[1] > 1:  # the implied parallelograms' largest corner gap
@@ -185,6 +255,14 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
     ``momentum`` is a number in 1D and a vector of ``dim`` components in 2D and 3D.
 
     Internal energy is ``sum_p V0_p W(F_p)`` with the material's stored energy ``W``.
+
+    Args:
+        scene: the scene (its material).
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        ``dict(mass, momentum, energy_kinetic, energy_internal, energy)``.
     """
     mat = scene.material()
     kinetic = 0.5 * jnp.sum(body.m * jnp.sum(jnp.square(state.v), axis=1))

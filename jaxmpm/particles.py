@@ -1,4 +1,4 @@
-"""Particle state and seeding.
+"""Particle state, seeding and domain geometry.
 
 Arrays are shaped ``(n, dim)`` (vectors) and ``(n, dim, dim)`` (tensors) in 1D, 2D and 3D alike.
 """
@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ._util import corner_signs, lattice
+from ._util import contract, corner_signs, lattice
 
 
 class Body(eqx.Module):
@@ -18,8 +18,9 @@ class Body(eqx.Module):
         X: reference centres, ``(n, dim)``.
         r0: initial half-lengths of the particle domains, ``(n, dim)``.
         m: masses ``rho0 * V0``, ``(n,)``.
-        V0: initial volumes ``2 r0`` (unit cross-section), ``(n,)``.
-        X_corners: reference positions of the shared domain corners, ``(nc, dim)`` (``n + 1`` in 1D).
+        V0: initial volumes ``prod_a 2 r0_a`` (in 1D the length ``2 r0``, unit cross-section), ``(n,)``.
+        X_corners: reference positions of the domain corners, each stored once for every particle
+            that meets there, ``(nc, dim)`` (``n + 1`` in 1D).
         corner_ids: the ``2^dim`` corners of each particle, ``(n, 2^dim)``, in the order of
             ``_util.corner_signs`` (in 1D: left, right).
         boundary: whether a particle was seeded in the first or last cell of the body along any
@@ -36,6 +37,7 @@ class Body(eqx.Module):
 
     @property
     def n(self) -> int:
+        """Number of particles."""
         return self.X.shape[0]
 
     def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n corners dim"]:
@@ -43,24 +45,50 @@ class Body(eqx.Module):
 
         A 1D body is a chain (``seed_bar``: particle ``p`` has corners ``p`` and ``p + 1``), read as
         two shifted slices rather than a gather, which the step does several times a step.
+
+        Args:
+            corners: the body's corners, one row per corner of ``X_corners``.
+
+        Returns:
+            The corners of each particle, in the order of ``_util.corner_signs``.
         """
         if self.X.shape[1] == 1 and corners.shape[0] == self.n + 1:
             return jnp.stack([corners[:-1], corners[1:]], axis=1)
         return corners[self.corner_ids]
 
 
-def seed_bar(cells: int, ppc: int, h: Array, rho0: Array) -> Body:
-    """Seed ``ppc`` particles per cell on ``[0, cells h]`` (``seed_box`` in 1D)."""
+def seed_bar(cells: int, ppc: int, h: Float[Array, ""], rho0: Float[Array, ""]) -> Body:
+    """Seed ``ppc`` particles per cell on ``[0, cells h]`` (``seed_box`` in 1D).
+
+    Args:
+        cells: cells the bar fills.
+        ppc: particles per cell.
+        h: cell size.
+        rho0: initial density.
+
+    Returns:
+        The ``Body``.
+    """
     return seed_box((cells,), ppc, h, rho0)
 
 
-def seed_box(cells: tuple[int, ...], ppc: int, h: Array, rho0: Array) -> Body:
+def seed_box(cells: tuple[int, ...], ppc: int, h: Float[Array, ""], rho0: Float[Array, ""]) -> Body:
     """Seed ``ppc`` particles per cell along each axis (``ppc^dim`` per cell) on ``[0, cells_a h]``.
 
     Particles sit at the centres of ``ppc`` equal sub-intervals of each cell along every axis, so
-    adjacent domains share corners (SPEC section 1). They are ordered by initial position with the
-    last axis fastest. A particle is in a boundary cell when its cell is the first or last along
-    any axis. Corners form the lattice of ``cells_a ppc + 1`` points per axis, in the same order.
+    adjacent domains meet at common corners (the usual MPM seeding; Sulsky, Chen & Schreyer 1994).
+    They are ordered by initial position with the last axis fastest. A particle is in a boundary
+    cell when its cell is the first or last along any axis. Corners form the lattice of
+    ``cells_a ppc + 1`` points per axis, in the same order.
+
+    Args:
+        cells: cells the body fills along each axis.
+        ppc: particles per cell along each axis.
+        h: cell size (the same along every axis).
+        rho0: initial density.
+
+    Returns:
+        The ``Body``.
     """
     d = len(cells)
     counts = [c * ppc for c in cells]
@@ -119,3 +147,27 @@ class State(eqx.Module):
     status: Int[Array, ""]
     fail_step: Int[Array, ""]
     fail_particle: Int[Array, ""]
+
+
+def parallelogram_corners(
+    r0: Float[Array, "n dim"], x: Float[Array, "n dim"], F: Float[Array, "n dim dim"]
+) -> Float[Array, "n corners dim"]:
+    """The ``2^dim`` corners ``x_p + F diag(r0) s_c`` of each particle's parallelogram domain.
+
+    The domain of a particle that deforms homogeneously with its own ``F``, the convected domain of
+    CPDI (Sadeghirad, Brannon & Burghardt 2011; in 1D their eq. 31, ``x_p -/+ F r0``). ``s_c`` are
+    the corners of the reference cube ``[-1, 1]^dim`` (``_util.corner_signs``).
+
+    Args:
+        r0: initial half-lengths of the domains.
+        x: current centres.
+        F: deformation gradients.
+
+    Returns:
+        The corners of each particle, in the order of ``_util.corner_signs``.
+    """
+    J = F * r0[:, None, :]  # J_ij = F_ij r0_j
+    if x.shape[1] == 1:  # x_p -/+ F r0
+        return jnp.stack([x - J[:, :, 0], x + J[:, :, 0]], axis=1)
+    signs = jnp.asarray(corner_signs(x.shape[1]), dtype=x.dtype)
+    return x[:, None, :] + contract("nij,cj->nci", J, signs)

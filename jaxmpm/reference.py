@@ -1,4 +1,4 @@
-"""An independent reference for the gas slab (SPEC 6.4): a Lagrangian method of lines, by diffrax.
+"""An independent reference for the gas slab: a Lagrangian method of lines, by diffrax.
 
 The gas on ``[0, L]`` is cut into ``cells`` equal Lagrangian cells of width ``dX``. Each cell carries
 its ``F``; each node its velocity (staggered, second order in space):
@@ -16,8 +16,6 @@ shares code with the MPM solver: it is the yardstick for MPM's error on this pro
 It is differentiable in ``P0``, ``gamma``, ``p_atm`` and ``rho0`` (diffrax's adjoint through the
 solver steps).
 """
-
-from __future__ import annotations
 
 import diffrax
 import equinox as eqx
@@ -45,8 +43,15 @@ class SlabSolution(eqx.Module):
     X: Float[Array, " cells"]
     stats: dict
 
-    def F_at(self, X: Float[Array, ...]) -> Float[Array, "nt ..."]:
-        """``F(X, t)`` at any reference positions, linear between cell centres (constant at the ends)."""
+    def F_at(self, X: Float[Array, "*points"]) -> Float[Array, " nt *points"]:
+        """``F(X, t)`` at any reference positions, linear between cell centres (constant at the ends).
+
+        Args:
+            X: reference positions.
+
+        Returns:
+            ``F`` at ``X`` at every time of ``ts``.
+        """
         return jax.vmap(lambda F: jnp.interp(X, self.X, F))(self.F)
 
 
@@ -64,8 +69,15 @@ def gas_slab(
         scene: the ``GasSlab`` whose parameters to use (its ``cells`` and ``h`` give only ``L``).
         ts: increasing times to report at (``ts[0] >= 0``).
         cells: Lagrangian cells of the reference (independent of the MPM resolution).
-        rtol, atol: diffrax's error control (``atol`` relative to the scales of F, v and x).
+        rtol: diffrax's relative tolerance.
+        atol: diffrax's absolute tolerance, relative to the scales of F, v and x.
         max_steps: diffrax's step bound.
+
+    Returns:
+        The ``SlabSolution``.
+
+    Raises:
+        ValueError: bad ``cells``, ``rtol`` or ``atol``.
     """
     check_int("cells", cells, 2)
     check_positive("rtol", rtol)
@@ -110,7 +122,18 @@ def gas_slab(
 
 def reference_convergence(scene, ts, cells=(100, 200, 400, 800), **kwargs) -> list[dict]:
     """The reference's own convergence: the free-surface trajectory at each resolution against the
-    finest, with the observed order between successive resolutions (Richardson)."""
+    finest, with the observed order between successive resolutions (Richardson).
+
+    Args:
+        scene: the ``GasSlab``.
+        ts: the times.
+        cells: the resolutions, coarse to fine (each twice the last for an order).
+        **kwargs: passed to ``gas_slab``.
+
+    Returns:
+        One row per resolution: ``cells``, ``x_free_max_diff`` and (between the first and the last)
+        ``order``.
+    """
     sols = [gas_slab(scene, ts, n, **kwargs) for n in cells]
     finest = sols[-1].x_free
     rows = []

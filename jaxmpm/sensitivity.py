@@ -33,13 +33,28 @@ from .scenes import AbstractScene
 
 
 def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
-    """The names a gradient can be taken with respect to: the scene's float parameters and ``dt``."""
+    """The names a gradient can be taken with respect to.
+
+    Args:
+        scene: a scene or a scene class.
+
+    Returns:
+        The scene's float parameters and ``dt``.
+    """
     cls = scene if isinstance(scene, type) else type(scene)
     return tuple(k for k, v in cls.parameters().items() if isinstance(v, float)) + ("dt",)
 
 
 def check_names(scene: AbstractScene, names: Sequence[str]) -> None:
-    """Raise ``ValueError`` unless every name is a continuous parameter of ``scene`` (or ``dt``)."""
+    """Check names for a gradient.
+
+    Args:
+        scene: the scene.
+        names: parameter names.
+
+    Raises:
+        ValueError: no name, or a name that is not a continuous parameter of ``scene`` (or ``dt``).
+    """
     allowed = continuous_parameters(scene)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
     for name in names:
@@ -75,6 +90,9 @@ def objective(
         error: a key of ``jaxmpm.errors`` or a function ``(scene, solution) -> scalar``.
         **simulate_kwargs: passed to ``simulate`` (transfer, artificial_cells, checkpoint, ...).
 
+    Returns:
+        The function of the named parameters.
+
     Raises:
         ValueError: an unknown or structural name, before anything is traced.
     """
@@ -109,12 +127,21 @@ def gradient(
     """The derivative of a run's error with respect to each named parameter.
 
     Args:
-        scene, interpolator, names, dt, steps, error, simulate_kwargs: as for ``objective``.
+        scene: as for ``objective``.
+        interpolator: as for ``objective``.
+        names: as for ``objective``.
+        dt: as for ``objective``.
+        steps: as for ``objective``.
+        error: as for ``objective``.
+        **simulate_kwargs: as for ``objective``.
         mode: ``"reverse"`` (``jax.grad``; pass ``checkpoint=True`` for long runs) or ``"forward"``
             (``jax.jacfwd``, memory independent of the step count, cost growing with ``len(names)``).
 
     Returns:
         ``{name: d(error)/d(name)}``.
+
+    Raises:
+        ValueError: an unknown mode, or an unknown or structural name.
     """
     if mode not in ("reverse", "forward"):
         raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")

@@ -23,7 +23,14 @@ QUANTITY = {
 
 
 def describe(status: int) -> list[str]:
-    """The names of the failures set in ``status``."""
+    """The failures set in a status bitmask, in words.
+
+    Args:
+        status: the bitmask.
+
+    Returns:
+        The description (``QUANTITY``) of each bit set.
+    """
     return [text for bit, text in QUANTITY.items() if status & bit]
 
 
@@ -32,6 +39,12 @@ def combine(checks):
 
     One pass builds each particle's bits and one reduction ORs them; the particle is searched for
     only when a bit is set (``lax.cond``), so a healthy step pays for no ``argmax``.
+
+    Args:
+        checks: pairs of a status bit and a boolean per particle (where the check failed).
+
+    Returns:
+        ``(status, particle)``, ``particle`` -1 when no bit is set.
     """
     per = None
     for bit, mask in checks:

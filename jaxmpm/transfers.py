@@ -1,4 +1,4 @@
-"""Particle velocity transfers: FLIP (the talk's), PIC and APIC.
+"""Particle velocity transfers: FLIP, PIC and APIC.
 
 The step calls ``momentum`` for particle-to-grid momentum and ``update`` for grid-to-particle.
 """
@@ -15,19 +15,70 @@ from .interpolators import Stencil
 
 
 class AbstractTransfer(eqx.Module):
-    """How particle velocities go to the grid and come back."""
+    """How particle velocities go to the grid and come back.
 
-    name: ClassVar[str]
-    affine: ClassVar[bool] = False  # whether particles carry an affine matrix C
+    Concrete transfers are final: they implement the abstract members below and nothing else.
 
-    def momentum(self, grid: Grid, stencil: Stencil, x, v, C, m) -> Float[Array, "n k dim"]:
-        """Per-stencil-entry momentum ``phi_ip m_p v_p`` (plus APIC's affine part)."""
-        del grid, x, C
-        return (stencil.w * m[:, None])[..., None] * v[:, None, :]
+    Attributes:
+        name: the name the transfer is known by (``TRANSFERS``, ``--transfer``).
+        affine: whether particles carry an affine velocity matrix ``C`` (APIC).
+    """
+
+    name: eqx.AbstractClassVar[str]
+    affine: eqx.AbstractClassVar[bool]
 
     @abc.abstractmethod
-    def update(self, grid: Grid, stencil: Stencil, v, a_nodes, v_new, dt) -> tuple[Array, Array | None]:
-        """New particle velocities (and APIC's ``C``)."""
+    def momentum(
+        self,
+        grid: Grid,
+        stencil: Stencil,
+        x: Float[Array, "n dim"],
+        v: Float[Array, "n dim"],
+        C: Float[Array, "n dim dim"] | None,
+        m: Float[Array, " n"],
+    ) -> Float[Array, "n k dim"]:
+        """Per-stencil-entry momentum ``phi_ip m_p v_p`` (plus APIC's affine part).
+
+        Args:
+            grid: the background grid.
+            stencil: the particles' stencil.
+            x: particle centres.
+            v: particle velocities.
+            C: APIC's affine matrices (``None`` for the other transfers).
+            m: particle masses.
+
+        Returns:
+            The momentum of each stencil entry, to be scattered onto nodes ``stencil.idx``.
+        """
+
+    @abc.abstractmethod
+    def update(
+        self,
+        grid: Grid,
+        stencil: Stencil,
+        v: Float[Array, "n dim"],
+        a_nodes: Float[Array, "n_nodes dim"],
+        v_new: Float[Array, "n_nodes dim"],
+        dt: Float[Array, ""],
+    ) -> tuple[Float[Array, "n dim"], Float[Array, "n dim dim"] | None]:
+        """New particle velocities (and APIC's ``C``) from the grid.
+
+        Args:
+            grid: the background grid.
+            stencil: the particles' stencil.
+            v: particle velocities at the start of the step.
+            a_nodes: nodal accelerations.
+            v_new: nodal velocities at the end of the step.
+            dt: the time step.
+
+        Returns:
+            ``(v_new_particles, C)``, ``C`` ``None`` unless the transfer is affine.
+        """
+
+
+def _point_momentum(stencil: Stencil, v, m):
+    """``phi_ip m_p v_p``: each particle's momentum carried by its weights (FLIP and PIC)."""
+    return (stencil.w * m[:, None])[..., None] * v[:, None, :]
 
 
 def _interp(grid: Grid, stencil: Stencil, field):
@@ -35,9 +86,15 @@ def _interp(grid: Grid, stencil: Stencil, field):
 
 
 class FLIP(AbstractTransfer):
-    """FLIP, the update in the talk: ``v_p += dt sum_i phi_ip a_i`` (Brackbill & Ruppel 1986)."""
+    """FLIP: ``v_p += dt sum_i phi_ip a_i`` (Brackbill & Ruppel 1986), the particle update of
+    standard MPM (Sulsky, Chen & Schreyer 1994) and of Bonifasi-Lista, Brannon & Wiskin 2013."""
 
-    name = "flip"
+    name: ClassVar[str] = "flip"
+    affine: ClassVar[bool] = False
+
+    def momentum(self, grid, stencil, x, v, C, m):
+        del grid, x, C
+        return _point_momentum(stencil, v, m)
 
     def update(self, grid, stencil, v, a_nodes, v_new, dt):
         del v_new
@@ -47,7 +104,12 @@ class FLIP(AbstractTransfer):
 class PIC(AbstractTransfer):
     """PIC: ``v_p = sum_i phi_ip v_i^{n+1}`` (dissipative, but free of FLIP's ringing)."""
 
-    name = "pic"
+    name: ClassVar[str] = "pic"
+    affine: ClassVar[bool] = False
+
+    def momentum(self, grid, stencil, x, v, C, m):
+        del grid, x, C
+        return _point_momentum(stencil, v, m)
 
     def update(self, grid, stencil, v, a_nodes, v_new, dt):
         del v, a_nodes, dt
@@ -63,8 +125,8 @@ class APIC(AbstractTransfer):
     with the interpolator's own ``dphi``.
     """
 
-    name = "apic"
-    affine = True
+    name: ClassVar[str] = "apic"
+    affine: ClassVar[bool] = True
 
     def momentum(self, grid, stencil, x, v, C, m):
         x_i = grid.nodes()[stencil.idx]  # (n, k, dim)
@@ -77,9 +139,6 @@ class APIC(AbstractTransfer):
         v_g = grid.gather(stencil.gidx, v_new)
         C = contract("nka,nkb->nab", v_g, stencil.dw)
         return _interp(grid, stencil, v_new), C
-
-
-TRANSFERS = {"flip": FLIP, "pic": PIC, "apic": APIC}
 
 
 TRANSFERS: dict[str, type[AbstractTransfer]] = {cls.name: cls for cls in (FLIP, PIC, APIC)}

@@ -38,8 +38,28 @@ class ArtificialViscosity(eqx.Module):
         check_nonnegative("c_quad", self.c_quad)
         check_nonnegative("c_lin", self.c_lin)
 
-    def pressure(self, material: AbstractMaterial, F_old, F_new, dt, rho0, h) -> Float[Array, " n"]:
-        """The viscous pressure ``q >= 0`` of each particle after a step from ``F_old`` to ``F_new``."""
+    def pressure(
+        self,
+        material: AbstractMaterial,
+        F_old: Float[Array, "n dim dim"],
+        F_new: Float[Array, "n dim dim"],
+        dt: Float[Array, ""],
+        rho0: Float[Array, ""],
+        h: Float[Array, ""],
+    ) -> Float[Array, " n"]:
+        """The viscous pressure ``q >= 0`` of each particle after a step from ``F_old`` to ``F_new``.
+
+        Args:
+            material: the material (its sound speed).
+            F_old: deformation gradients before the step.
+            F_new: deformation gradients after the step.
+            dt: the time step.
+            rho0: initial density.
+            h: grid spacing.
+
+        Returns:
+            ``q``, as in the module's docstring.
+        """
         J_old, J_new = det(F_old), det(F_new)
         rate = (J_new - J_old) / (dt * J_new)
         compress = jnp.minimum(rate, 0.0)
@@ -47,8 +67,28 @@ class ArtificialViscosity(eqx.Module):
         rho = rho0 / J_new
         return rho * (self.c_quad * jnp.square(h * compress) + self.c_lin * c * h * (-compress))
 
-    def stress(self, material: AbstractMaterial, F_old, F_new, dt, rho0, h) -> Float[Array, "n dim dim"]:
-        """The viscous stress ``-q I`` to add to each particle's Cauchy stress."""
+    def stress(
+        self,
+        material: AbstractMaterial,
+        F_old: Float[Array, "n dim dim"],
+        F_new: Float[Array, "n dim dim"],
+        dt: Float[Array, ""],
+        rho0: Float[Array, ""],
+        h: Float[Array, ""],
+    ) -> Float[Array, "n dim dim"]:
+        """The viscous stress ``-q I`` to add to each particle's Cauchy stress.
+
+        Args:
+            material: as for ``pressure``.
+            F_old: as for ``pressure``.
+            F_new: as for ``pressure``.
+            dt: as for ``pressure``.
+            rho0: as for ``pressure``.
+            h: as for ``pressure``.
+
+        Returns:
+            ``-q I`` per particle.
+        """
         q = self.pressure(material, F_old, F_new, dt, rho0, h)
         dim = F_new.shape[-1]
         return -q[:, None, None] * jnp.eye(dim, dtype=F_new.dtype)[None]

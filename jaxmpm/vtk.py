@@ -65,8 +65,20 @@ def _point_data(fields: Mapping[str, np.ndarray], n: int) -> bytes:
 def write_particles(
     path: str | os.PathLike, x, fields: Mapping[str, np.ndarray] | None = None
 ) -> pathlib.Path:
-    """Write particles at positions ``x`` (``(n, dim)``) with point data ``fields``: arrays of shape
-    ``(n,)`` (scalars), ``(n, 3)`` (vectors) or ``(n, 9)`` (3x3 tensors, row-major)."""
+    """Write particles as a legacy VTK ``UNSTRUCTURED_GRID`` of vertices.
+
+    Args:
+        path: the file to write.
+        x: positions, ``(n, dim)``.
+        fields: point data: arrays of shape ``(n,)`` (scalars), ``(n, 3)`` (vectors) or ``(n, 9)``
+            (3x3 tensors, row-major).
+
+    Returns:
+        ``path``.
+
+    Raises:
+        ValueError: a field of the wrong length or shape.
+    """
     x = _pad_vectors(np.asarray(x, dtype=float))
     n = x.shape[0]
     cells = np.stack([np.ones(n, dtype=np.int64), np.arange(n)], axis=1)
@@ -87,8 +99,19 @@ def write_particles(
 
 
 def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) -> pathlib.Path:
-    """Write node fields of ``grid`` (a ``jm.Grid``) as ``STRUCTURED_POINTS``; ``fields`` as for
-    ``write_particles``, one value per node."""
+    """Write node fields of a grid as legacy VTK ``STRUCTURED_POINTS``.
+
+    Args:
+        path: the file to write.
+        grid: the ``jm.Grid``.
+        fields: as for ``write_particles``, one value per node (in jaxmpm's flat order).
+
+    Returns:
+        ``path``.
+
+    Raises:
+        ValueError: a field of the wrong length or shape.
+    """
     dim = grid.dim
     shape = list(grid.axes) + [1] * (3 - dim)
     origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
@@ -113,21 +136,37 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
     return path
 
 
-def nodal_fields(model, state, s=None) -> dict[str, np.ndarray]:
+def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
     """Nodal ``mass`` and ``velocity`` (momentum / mass, zero on empty nodes) of ``state``, from the
-    particle-to-grid transfer of ``model`` (a ``jm.Model``), real particles only. ``s`` is the run's
-    ``jm.setup(model)``, derived here when not given."""
-    from ._step import particle_to_grid, setup
+    particle-to-grid transfer of ``model``, real particles only.
 
-    s = setup(model) if s is None else s
-    mass, momentum = particle_to_grid(model, s, state)
-    occupied = mass > s.tiny
+    Args:
+        model: the run (a ``jm.Model``).
+        state: the state.
+        setup: the run's ``jm.setup(model)``, derived here when not given.
+
+    Returns:
+        ``{"mass": (n_nodes,), "velocity": (n_nodes, 3)}``.
+    """
+    from . import _step
+
+    setup = _step.setup(model) if setup is None else setup
+    mass, momentum = _step.particle_to_grid(model, setup, state)
+    occupied = mass > setup.tiny
     velocity = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass, 1.0)[:, None], 0.0)
     return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
 
 
 def particle_fields(state, body) -> dict[str, np.ndarray]:
-    """The particle point data written by ``write_series``: ``v``, ``F``, ``sigma``, ``J``, ``X``."""
+    """The particle point data written by ``write_series``.
+
+    Args:
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        ``v``, ``F``, ``sigma``, ``J`` and ``X``, padded to 3 components (``F`` and ``sigma`` to 3x3).
+    """
     return {
         "v": _pad_vectors(np.asarray(state.v)),
         "F": _pad_tensors(np.asarray(state.F), fill_identity=True),
@@ -145,6 +184,17 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     Saved times after a breakdown, or past ``t_end`` in a run to an end time, repeat the final
     state and are left out. The final state (after a breakdown, the last good one) is the last
     frame, added when it falls between saves.
+
+    Args:
+        out_dir: the directory to write to (made if missing).
+        model: the run (a ``jm.Model``).
+        solution: its ``Solution``.
+
+    Returns:
+        The paths written.
+
+    Raises:
+        ValueError: the solution has no history, or its history lacks a field the files need.
     """
     if solution.history is None:
         raise ValueError(
@@ -169,12 +219,12 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
         frames.append((t_last, solution.state))
     from ._step import setup
 
-    s = setup(model)  # once for the series: the grid and the body do not change
+    prepared = setup(model)  # once for the series: the grid and the body do not change
     paths, entries = [], {"particles": [], "grid": []}
     for frame, (t, state) in enumerate(frames):
         fields = particle_fields(state, solution.body)
         p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields)
-        g = write_grid(out / f"grid_{frame:05d}.vtk", s.grid, nodal_fields(model, state, s))
+        g = write_grid(out / f"grid_{frame:05d}.vtk", prepared.grid, nodal_fields(model, state, prepared))
         paths += [p, g]
         entries["particles"].append((t, p.name))
         entries["grid"].append((t, g.name))
@@ -192,6 +242,8 @@ def _state_at(solution, i: int):
     """The state of saved frame ``i`` (fields not saved keep the final state's values)."""
     import equinox as eqx
 
-    names = [n for n in solution.history if n in ("x", "v", "F", "sigma", "C", "corners", "x_traction")]
+    from ._simulate import STATE_FIELDS
+
+    names = [n for n in solution.history if n in STATE_FIELDS]
     values = [solution.history[n][i] for n in names]
     return eqx.tree_at(lambda s: [getattr(s, n) for n in names], solution.state, values)

@@ -10,7 +10,7 @@ from .gimp import GIMP as GIMP
 from .mpq import MPQ as MPQ
 from .spq import SPQ as SPQ
 
-INTERPOLATORS: dict[str, Callable[[], AbstractInterpolator]] = {
+INTERPOLATORS: dict[str, Callable[..., AbstractInterpolator]] = {
     "spq": SPQ,
     "gimp": GIMP,
     "cpgimp": functools.partial(GIMP, contiguous=True),
@@ -18,4 +18,5 @@ INTERPOLATORS: dict[str, Callable[[], AbstractInterpolator]] = {
     "mpq": MPQ,
 }
 """The one registry of interpolators: the name each is known by (``interpolator.name``, the command
-line's ``--interpolator``, a checkpoint's metadata) and how to make it with its defaults."""
+line's ``--interpolator``, a saved run's metadata) and how to make it: called with no argument it
+gives the defaults, with keyword arguments the options a saved run recorded (its static fields)."""

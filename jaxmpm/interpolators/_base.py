@@ -1,7 +1,7 @@
 """The interface every interpolator implements (equinox's abstract/final pattern)."""
 
 import abc
-from typing import ClassVar, NamedTuple
+from typing import NamedTuple
 
 import equinox as eqx
 from jaxtyping import Array, Bool, Float, Int
@@ -15,16 +15,16 @@ class Stencil(NamedTuple):
 
     ``phi_ip`` (mass, momentum, body force, particle update) lives on nodes ``idx`` with weights
     ``w``; ``dphi_ip`` (internal force, velocity gradient) lives on nodes ``gidx`` with weights
-    ``dw``. The two share their index array where the interpolator allows it. Repeated node indices
+    ``dw``. The two use one index array where the interpolator allows it. Repeated node indices
     are allowed: scatters add them up.
 
     Attributes:
-        idx: ``(n, k)`` node indices of ``phi``.
-        w: ``(n, k)`` values of ``phi``.
-        gidx: ``(n, kg)`` node indices of ``dphi`` (``None`` when gradients were not asked for).
-        dw: ``(n, kg, dim)`` values of ``dphi``.
-        ok: ``(n,)`` whether the particle's query fits the interpolator's stencil (GIMP's domain
-            may outgrow a fixed-width stencil); ``None`` when it always fits.
+        idx: node indices of ``phi``.
+        w: values of ``phi``.
+        gidx: node indices of ``dphi`` (``None`` when gradients were not asked for).
+        dw: values of ``dphi``.
+        ok: whether the particle's query fits the interpolator's stencil (GIMP's domain may outgrow a
+            fixed-width stencil); ``None`` when it always fits.
     """
 
     idx: Int[Array, "n k"]
@@ -37,11 +37,16 @@ class Stencil(NamedTuple):
 class AbstractInterpolator(eqx.Module):
     """How particles query the grid: weights, weight gradients, and the update of ``F``.
 
-    Concrete interpolators are final and override only the abstract methods below.
+    Concrete interpolators are final: they implement the abstract members below and nothing else.
+
+    Attributes:
+        name: the name the interpolator is known by (``INTERPOLATORS``, ``--interpolator``, a saved
+            run's metadata).
+        tracks_corners: whether the particles' domain corners are part of the state (MPQ).
     """
 
-    name: ClassVar[str]
-    tracks_corners: ClassVar[bool] = False
+    name: eqx.AbstractVar[str]
+    tracks_corners: eqx.AbstractClassVar[bool]
 
     @abc.abstractmethod
     def stencil(
@@ -55,7 +60,16 @@ class AbstractInterpolator(eqx.Module):
     ) -> Stencil:
         """``phi`` and (if ``gradients``) ``dphi`` of particles with half-lengths ``r0``.
 
-        ``corners`` are the particles' own ``2^dim`` corners (MPQ only, ``None`` otherwise).
+        Args:
+            grid: the background grid.
+            r0: initial half-lengths of the particle domains.
+            x: particle centres.
+            F: deformation gradients.
+            corners: the particles' own ``2^dim`` corners (MPQ; ``None`` otherwise).
+            gradients: whether to compute ``dphi`` as well.
+
+        Returns:
+            The ``Stencil``.
         """
 
     @abc.abstractmethod
@@ -69,7 +83,20 @@ class AbstractInterpolator(eqx.Module):
         v_new: Float[Array, "n_nodes dim"],
         dt: Float[Array, ""],
     ) -> tuple[Float[Array, "n dim dim"], Float[Array, "nc dim"] | None]:
-        """The new deformation gradients (and MPQ's new corners) from the new grid velocity."""
+        """The new deformation gradients (and MPQ's new corners) from the new grid velocity.
+
+        Args:
+            grid: the background grid.
+            body: the reference configuration.
+            stencil: the step's stencil of the particles.
+            F: deformation gradients at the start of the step.
+            corners: the body's tracked corners (MPQ; ``None`` otherwise).
+            v_new: the grid velocity at the end of the step.
+            dt: the time step.
+
+        Returns:
+            ``(F_new, corners_new)``.
+        """
 
     @abc.abstractmethod
     def extent(
@@ -79,5 +106,14 @@ class AbstractInterpolator(eqx.Module):
         F: Float[Array, "n dim dim"],
         corners: Float[Array, "n corners dim"] | None,
     ) -> tuple[Float[Array, "n dim"], Float[Array, "n dim"]]:
-        """Lowest and highest point along each axis at which each particle queries the grid,
-        ``(lo, hi)``, each ``(n, dim)``."""
+        """Lowest and highest point along each axis at which each particle queries the grid.
+
+        Args:
+            r0: initial half-lengths of the particle domains.
+            x: particle centres.
+            F: deformation gradients.
+            corners: the particles' own ``2^dim`` corners (MPQ; ``None`` otherwise).
+
+        Returns:
+            ``(lo, hi)``.
+        """

@@ -1,5 +1,5 @@
-"""Shared pieces of the interpolators: tensor-product hat stencils, domain gradients, velocity
-gradients.
+"""The pieces the interpolators have in common: tensor-product hat stencils, domain gradients,
+velocity gradients.
 
 In ``dim`` dimensions a node's shape function is the product of 1D hats, ``S_i(x) = prod_a
 S_{i_a}(x_a)`` (Sulsky, Chen & Schreyer 1994); GIMP's weights are products of the 1D averages
@@ -27,6 +27,14 @@ def point_stencil(
 
     A point exactly on node ``j`` gets nodes ``(j, j + 1)`` with values ``(1, 0)`` and the slopes of
     the cell to its right: the one-sided derivative.
+
+    Args:
+        grid: the background grid.
+        y: coordinates along ``axis``.
+        axis: the axis.
+
+    Returns:
+        ``(idx, S, S')``, each with a last axis of the two nodes.
     """
     base, frac = grid.locate(y, axis)
     idx = jnp.stack([base, base + 1], axis=-1)
@@ -39,7 +47,17 @@ def point_stencil(
 def tensor(grid: Grid, parts, gradients: bool = True):
     """Combine per-axis stencils ``parts[a] = (idx_a, w_a, dw_a)``, each ``(..., k_a)``, into the
     tensor-product stencil ``(idx, w, dw)`` of ``prod_a k_a`` nodes (last axis fastest):
-    ``w = prod_a w_a`` and ``dw[..., a] = dw_a prod_{b != a} w_b``. ``dw`` is ``(..., k, dim)``."""
+    ``w = prod_a w_a`` and ``dw[..., a] = dw_a prod_{b != a} w_b``.
+
+    Args:
+        grid: the background grid.
+        parts: one ``(idx_a, w_a, dw_a)`` per axis.
+        gradients: whether to form ``dw``.
+
+    Returns:
+        ``(idx, w, dw)``: flat node indices and weights ``(..., k)``, gradients ``(..., k, dim)`` (or
+        ``None``).
+    """
     if len(parts) == 1:
         idx, w, dw = parts[0]
         return idx, w, (dw[..., None] if gradients else None)
@@ -66,7 +84,16 @@ def tensor(grid: Grid, parts, gradients: bool = True):
 
 
 def points_stencil(grid: Grid, y: Float[Array, "... dim"], gradients: bool = True):
-    """The ``2^dim``-node hat stencil ``(idx, S_i(y), grad S_i(y))`` of points ``y`` (flat indices)."""
+    """The ``2^dim``-node hat stencil of points ``y``.
+
+    Args:
+        grid: the background grid.
+        y: the points.
+        gradients: whether to form ``grad S_i(y)``.
+
+    Returns:
+        ``(idx, S_i(y), grad S_i(y))`` with flat node indices (``tensor``).
+    """
     parts = [point_stencil(grid, y[..., a], a) for a in range(y.shape[-1])]
     return tensor(grid, parts, gradients)
 
@@ -74,7 +101,14 @@ def points_stencil(grid: Grid, y: Float[Array, "... dim"], gradients: bool = Tru
 def corner_matrix(c: Float[Array, "n corners dim"]) -> Float[Array, "n dim dim"]:
     """``D = sum_c x_c s_c^T`` of each particle's ``2^dim`` corners ``x_c`` (signs ``s_c`` of
     ``corner_signs``): for a parallelogram ``x_c = x_p + J s_c`` it is ``2^dim J``, and in 1D the
-    domain length ``x_c2 - x_c1``. Written as sums and differences (no products by +-1)."""
+    domain length ``x_c2 - x_c1``. Written as sums and differences (no products by +-1).
+
+    Args:
+        c: each particle's corners, in the order of ``corner_signs``.
+
+    Returns:
+        ``D`` of each particle.
+    """
     d = c.shape[-1]
     signs = corner_signs(d)
     cols = []
@@ -94,6 +128,13 @@ def domain_gradient(S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
     2011, CPDI1; in 2D their eq. 31). In 1D it is ``(S_i(c2) - S_i(c1)) / (c2 - c1)``. The entries
     are returned flat, ``(n, corners * k, dim)`` (corner-major); summing over corners is left to the
     scatter.
+
+    Args:
+        S: each node's hat value at each of the particle's corners.
+        D: ``corner_matrix`` of the corners.
+
+    Returns:
+        ``dphi_ip`` per (corner, node) entry.
     """
     d = D.shape[-1]
     signs = jnp.asarray(corner_signs(d), dtype=D.dtype)
@@ -108,19 +149,51 @@ def domain_gradient(S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
 def velocity_gradient(
     grid: Grid, stencil: Stencil, v_nodes: Float[Array, "n_nodes dim"]
 ) -> Float[Array, "n dim dim"]:
-    """``L_p = sum_i v_i (dphi_ip)^T``, the velocity gradient each particle sees."""
+    """``L_p = sum_i v_i (dphi_ip)^T``, the velocity gradient each particle sees.
+
+    Args:
+        grid: the background grid.
+        stencil: the particles' stencil (with gradients).
+        v_nodes: nodal velocities.
+
+    Returns:
+        ``L`` of each particle.
+    """
     v = grid.gather(stencil.gidx, v_nodes)  # (n, kg, dim)
     return contract("nka,nkb->nab", v, stencil.dw)
 
 
 def multiplicative_F_update(
-    grid: Grid, stencil: Stencil, F: Float[Array, "n dim dim"], v_new: Float[Array, "n_nodes dim"], dt
+    grid: Grid,
+    stencil: Stencil,
+    F: Float[Array, "n dim dim"],
+    v_new: Float[Array, "n_nodes dim"],
+    dt: Float[Array, ""],
 ) -> Float[Array, "n dim dim"]:
-    """``F <- (I + dt L) F``, the update of SPQ, GIMP and CPDI (SPEC section 3)."""
+    """``F <- (I + dt L) F`` with ``L`` of ``velocity_gradient``, the update of SPQ (Sulsky, Chen &
+    Schreyer 1994), GIMP (Bardenhagen & Kober 2004) and CPDI (Sadeghirad, Brannon & Burghardt 2011).
+
+    Args:
+        grid: the background grid.
+        stencil: the particles' stencil (with gradients).
+        F: deformation gradients at the start of the step.
+        v_new: nodal velocities at the end of the step.
+        dt: the time step.
+
+    Returns:
+        The new deformation gradients.
+    """
     L = velocity_gradient(grid, stencil, v_new)
     return F + dt * contract("nab,nbc->nac", L, F)
 
 
 def any_axis(mask):
-    """``mask.any(-1)`` as unrolled ORs (a short reduce is a slow library call on XLA's CPU backend)."""
+    """``mask.any(-1)`` as unrolled ORs (a short reduce is a slow library call on XLA's CPU backend).
+
+    Args:
+        mask: booleans with a short last axis.
+
+    Returns:
+        Whether any entry along the last axis is set.
+    """
     return functools.reduce(operator.or_, [mask[..., a] for a in range(mask.shape[-1])])

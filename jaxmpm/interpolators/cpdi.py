@@ -1,35 +1,29 @@
 """Convected particle domain interpolation (Sadeghirad, Brannon & Burghardt 2011), CPDI1."""
 
 import functools
+from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._util import contract, corner_signs
+from ..particles import parallelogram_corners
 from ._base import AbstractInterpolator, Stencil
 from ._transfer import domain_gradient, multiplicative_F_update, points_stencil
 
 
-def parallelogram_corners(r0, x, F):
-    """The ``2^dim`` corners ``x_p + F diag(r0) s_c`` of each parallelogram, ``(n, 2^dim, dim)``."""
-    J = F * r0[:, None, :]  # J_ij = F_ij r0_j
-    if x.shape[1] == 1:  # x_p -/+ F r0
-        return jnp.stack([x - J[:, :, 0], x + J[:, :, 0]], axis=1)
-    signs = jnp.asarray(corner_signs(x.shape[1]), dtype=x.dtype)
-    return x[:, None, :] + contract("nij,cj->nci", J, signs)
-
-
 class CPDI(AbstractInterpolator):
-    """CPDI with parallelogram domains that follow ``F`` (Sadeghirad et al. 2011).
+    """CPDI with parallelogram domains that follow ``F`` (Sadeghirad, Brannon & Burghardt 2011).
 
-    The domain is ``x_p + F diag(r0) [-1, 1]^dim`` with corners ``x_c = x_p + F diag(r0) s_c``;
-    ``phi_ip = 2^-dim sum_c S_i(x_c)`` and ``dphi_ip = sum_c S_i(x_c) D^-T s_c`` with ``D = 2^dim F
-    diag(r0)`` (see ``domain_gradient``); ``F <- (I + dt sum_i v_i dphi_ip^T) F``. In 1D the corners
-    are ``x_p -/+ F r0`` (their eq. 31) and ``dphi_ip = (S_i(c2) - S_i(c1)) / (c2 - c1)``, so the
-    update is ``F + dt / (2 r0) sum_i (S_i(c2) - S_i(c1)) v_i`` (SPEC 3). Neighbouring domains are
-    built from each particle's own ``F``: they can open gaps or overlap (``metrics.corner_gap``).
+    The domain is ``x_p + F diag(r0) [-1, 1]^dim`` with corners ``x_c = x_p + F diag(r0) s_c``
+    (``particles.parallelogram_corners``); ``phi_ip = 2^-dim sum_c S_i(x_c)`` and ``dphi_ip = sum_c
+    S_i(x_c) D^-T s_c`` with ``D = 2^dim F diag(r0)`` (see ``domain_gradient``); ``F <- (I + dt
+    sum_i v_i dphi_ip^T) F``. In 1D the corners are ``x_p -/+ F r0`` (their eq. 31) and ``dphi_ip =
+    (S_i(c2) - S_i(c1)) / (c2 - c1)``, so the update is ``F + dt / (2 r0) sum_i (S_i(c2) - S_i(c1))
+    v_i``. Neighbouring domains are built from each particle's own ``F``: they can open gaps or
+    overlap (``metrics.corner_gap``).
     """
 
-    name = "cpdi"
+    name: ClassVar[str] = "cpdi"
+    tracks_corners: ClassVar[bool] = False
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del corners

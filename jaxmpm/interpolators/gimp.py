@@ -2,9 +2,11 @@
 
 import functools
 import operator
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
 from ..shapes import hat, hat_integral
 from ._base import AbstractInterpolator, Stencil
@@ -32,16 +34,30 @@ class GIMP(AbstractInterpolator):
 
     contiguous: bool = eqx.field(static=True, default=False)
     max_span: int = eqx.field(static=True, default=1)
+    tracks_corners: ClassVar[bool] = False
 
     def __check_init__(self):
         if isinstance(self.max_span, bool) or not isinstance(self.max_span, int) or self.max_span < 1:
             raise ValueError(f"max_span must be an integer >= 1, got {self.max_span!r}")
 
     @property
-    def name(self) -> str:  # type: ignore[override]
+    def name(self) -> str:
+        """``"cpgimp"`` for cpGIMP, ``"gimp"`` for uGIMP."""
         return "cpgimp" if self.contiguous else "gimp"
 
-    def half_length(self, r0, F, axis=0):
+    def half_length(
+        self, r0: Float[Array, "n dim"], F: Float[Array, "n dim dim"], axis: int = 0
+    ) -> Float[Array, " n"]:
+        """The domain's half-length along ``axis``: ``r0_a`` (uGIMP) or ``F_aa r0_a`` (cpGIMP).
+
+        Args:
+            r0: initial half-lengths of the particle domains.
+            F: deformation gradients.
+            axis: the axis.
+
+        Returns:
+            The half-length ``l_a`` of each particle's domain.
+        """
         return r0[:, axis] * F[:, axis, axis] if self.contiguous else r0[:, axis]
 
     def _axis(self, grid, r0, x, F, axis, gradients):

@@ -1,6 +1,7 @@
 """Multi point query (Bonifasi-Lista, Brannon & Wiskin, 7th MPM Workshop 2013)."""
 
 import functools
+from typing import ClassVar
 
 import jax.numpy as jnp
 
@@ -16,14 +17,14 @@ class MPQ(AbstractInterpolator):
     internal force uses the domain form on the tracked corners, ``dphi_ip = sum_c S_i(x_c) D^-T s_c``
     with ``D = sum_c x_c s_c^T`` (``domain_gradient``; in 1D ``(S_i(c2) - S_i(c1)) / (c2 - c1)``).
     After the grid update every corner moves, ``x_c += dt sum_i S_i(x_c) v_i^{n+1}``, and ``F = D
-    diag(1 / (2^dim r0))``: in 1D ``(x_c2 - x_c1) / (2 r0)`` (talk, "Algorithm of MPQ"), in 2D and
-    3D the mean gradient of the map from the reference cube to the tracked corners, exact for a
-    parallelogram (the corner tracking of CPDI2, Sadeghirad, Brannon & Guilkey 2013). Neighbours
-    share a corner, stored once, so domains stay contiguous.
+    diag(1 / (2^dim r0))``: in 1D ``(x_c2 - x_c1) / (2 r0)`` (Bonifasi-Lista, Brannon & Wiskin 2013,
+    "Algorithm of MPQ"), in 2D and 3D the mean gradient of the map from the reference cube to the
+    tracked corners, exact for a parallelogram (the corner tracking of CPDI2, Sadeghirad, Brannon &
+    Guilkey 2013). Neighbours meet at one corner, stored once, so domains stay contiguous.
     """
 
-    name = "mpq"
-    tracks_corners = True
+    name: ClassVar[str] = "mpq"
+    tracks_corners: ClassVar[bool] = True
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F

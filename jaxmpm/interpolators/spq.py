@@ -1,5 +1,7 @@
 """Single point query: standard MPM (Sulsky, Chen & Schreyer 1994)."""
 
+from typing import ClassVar
+
 from ._base import AbstractInterpolator, Stencil
 from ._transfer import multiplicative_F_update, points_stencil
 
@@ -7,7 +9,8 @@ from ._transfer import multiplicative_F_update, points_stencil
 class SPQ(AbstractInterpolator):
     """Standard MPM: ``phi_ip = S_i(x_p)``, ``dphi_ip = grad S_i(x_p)``, ``F <- (I + dt grad v) F``."""
 
-    name = "spq"
+    name: ClassVar[str] = "spq"
+    tracks_corners: ClassVar[bool] = False
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F, corners

@@ -1,6 +1,7 @@
 """Scenes: one per file, each with its exact or manufactured solution where one exists."""
 
 from ._base import AbstractScene as AbstractScene
+from ._displacement import AbstractDisplacementScene as AbstractDisplacementScene
 from .axis_aligned import AxisAligned as AxisAligned
 from .blast import Blast as Blast
 from .gas_expansion import GasExpansion as GasExpansion
@@ -23,3 +24,5 @@ SCENES: dict[str, type[AbstractScene]] = {
         Blast,
     )
 }
+"""The one registry of scenes, by the name each is known by (``scene.name``, the command line, a saved
+run's metadata)."""

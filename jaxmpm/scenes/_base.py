@@ -3,11 +3,10 @@
 import abc
 import dataclasses
 from collections.abc import Callable
-from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_int, check_positive
 from ..grid import Grid
@@ -18,37 +17,51 @@ from ..particles import Body, seed_box
 class AbstractScene(eqx.Module):
     """A body on ``[0, cells h]^dim`` with ``ppc`` particles per cell and axis, padded by ``pad`` cells.
 
-    ``dim`` is 1 unless the scene declares a static field ``dim`` (1, 2 or 3): a scene with several
-    dimensions takes it as a parameter (``GasExpansion(dim=2)``, ``dim=2`` on the command line).
+    Concrete scenes are final: they implement the abstract members below and nothing else.
 
     Continuous parameters are float array fields (differentiable, vmappable); ``cells``, ``ppc`` and
     ``pad`` are static. Optional physics is declared by Python structure, not by flags, so that the
-    compiled step holds only what the scene needs:
+    compiled step holds only what the scene needs. Every scene declares each of these, ``None``
+    where it has no such part:
 
-    - ``body_force`` is ``None`` or a method ``(X, t) -> b`` (Lagrangian, per unit mass);
-    - ``traction(t)`` returns one entry per face, ``(low, high)`` of axis 0, then of axis 1, ...
-      (in 1D ``(left, right)``), each ``None`` or the traction vector per unit reference area, ``P N``
-      (``P`` the first Piola stress, ``N`` the outward reference normal; in 1D ``sigma n``), uniform
-      over the face;
-    - ``left`` and ``right`` are the low and high faces of every axis: ``"free"`` (artificial cells
-      may be added there), ``"wall"`` (node velocity zero) or ``"symmetry"`` (a plane of symmetry,
-      or roller: the normal velocity component is zero);
-    - ``exact`` is ``None`` or a method ``(X, t) -> dict(x, v, F, sigma)`` for one particle;
-    - ``initial_position`` is ``None`` (the body starts undeformed, ``x = X``, ``F = I``) or a method
+    - ``body_force``: ``None`` or a method ``(X, t) -> b`` (Lagrangian, per unit mass);
+    - ``traction``: ``None`` or a method ``t -> faces`` giving one entry per face, ``(low, high)`` of
+      axis 0, then of axis 1, ... (in 1D ``(left, right)``), each ``None`` or the traction vector
+      per unit reference area, ``P N`` (``P`` the first Piola stress, ``N`` the outward reference
+      normal; in 1D ``sigma n``), uniform over the face. Which entries are ``None`` is structure: it
+      must not depend on ``t`` or on the array parameters;
+    - ``exact``: ``None`` or a method ``(X, t) -> dict(x, v, F, sigma)`` for one particle;
+    - ``initial_position``: ``None`` (the body starts undeformed, ``x = X``, ``F = I``) or a method
       ``X -> x`` for a body that starts deformed: centres, corners and traction points are mapped
       by it and ``F = dx/dX`` at the centres;
-    - ``smooth`` is ``None`` (the exact solution is smooth everywhere) or a method ``(X, t) -> bool``
+    - ``smooth``: ``None`` (the exact solution is smooth everywhere) or a method ``(X, t) -> bool``
       marking the particles away from fronts, where errors are expected to converge.
+
+    Attributes:
+        name: the name the scene is known by (``SCENES``, the command line, a saved run).
+        description: one line for listings.
+        dim: number of space dimensions, 1, 2 or 3 (a scene with several takes it as a static field,
+            ``GasExpansion(dim=2)``; a 1D scene declares ``dim: ClassVar[int] = 1``).
+        left, right: the low and high faces of every axis: ``"free"`` (artificial cells may be added
+            there), ``"wall"`` (node velocity zero) or ``"symmetry"`` (a plane of symmetry, or
+            roller: the normal velocity component is zero).
+        h: grid spacing (the body is ``cells h`` wide along each axis).
+        rho0: initial density.
+        cells: cells the body fills along each axis (static).
+        ppc: particles per cell along each axis (static).
+        pad: cells of grid beyond the body on each side (static).
     """
 
-    name: ClassVar[str]
-    description: ClassVar[str]
-    left: ClassVar[str] = "free"
-    right: ClassVar[str] = "free"
-    body_force: ClassVar[Callable | None] = None
-    exact: ClassVar[Callable | None] = None
-    initial_position: ClassVar[Callable | None] = None
-    smooth: ClassVar[Callable | None] = None
+    name: eqx.AbstractClassVar[str]
+    description: eqx.AbstractClassVar[str]
+    dim: eqx.AbstractVar[int]
+    left: eqx.AbstractVar[str]
+    right: eqx.AbstractVar[str]
+    body_force: eqx.AbstractVar[Callable | None]
+    traction: eqx.AbstractVar[Callable | None]
+    exact: eqx.AbstractVar[Callable | None]
+    initial_position: eqx.AbstractVar[Callable | None]
+    smooth: eqx.AbstractVar[Callable | None]
 
     h: eqx.AbstractVar[Float[Array, ""]]
     rho0: eqx.AbstractVar[Float[Array, ""]]
@@ -68,24 +81,26 @@ class AbstractScene(eqx.Module):
 
     @abc.abstractmethod
     def material(self) -> AbstractMaterial:
-        """The constitutive model, built from the scene's parameters."""
+        """The constitutive model, built from the scene's parameters.
+
+        Returns:
+            The material.
+        """
 
     @abc.abstractmethod
-    def initial_velocity(self, X: Float[Array, " dim"]) -> Float[Array, " dim"]:
-        """Velocity of the material point at reference position ``X`` at ``t = 0``."""
+    def initial_velocity(self, X: Float[ArrayLike, " dim"]) -> Float[Array, " dim"]:
+        """Velocity of the material point at reference position ``X`` at ``t = 0``.
 
-    def traction(self, t: Float[Array, ""]) -> tuple[Array | None, Array | None]:
-        """Traction vectors per face (``None`` where a face carries none); see the class docstring."""
-        del t
-        return (None,) * (2 * self.dim)
+        Args:
+            X: reference position of one material point.
 
-    @property
-    def dim(self) -> int:
-        """Number of space dimensions (a scene with several declares a static field ``dim``)."""
-        return 1
+        Returns:
+            Its velocity.
+        """
 
     @property
     def length(self) -> Float[Array, ""]:
+        """The body's width along each axis, ``cells h``."""
         return self.cells * self.h
 
     @property
@@ -94,6 +109,11 @@ class AbstractScene(eqx.Module):
         return self.material().sound_speed(jnp.eye(self.dim, dtype=self.h.dtype), self.rho0)
 
     def grid(self) -> Grid:
+        """The background grid: ``cells + 2 pad + 1`` nodes along each axis from ``-pad h``.
+
+        Returns:
+            The ``Grid``.
+        """
         if self.dim == 1:
             x_min = jnp.reshape(-self.pad * self.h, (1,))
             return Grid(x_min=x_min, h=self.h, n_nodes=self.cells + 2 * self.pad + 1)
@@ -101,12 +121,21 @@ class AbstractScene(eqx.Module):
         return Grid.box(x_min, self.h, (self.cells + 2 * self.pad + 1,) * self.dim)
 
     def body(self) -> Body:
+        """The body's particles, seeded by ``particles.seed_box``.
+
+        Returns:
+            The ``Body``.
+        """
         return seed_box((self.cells,) * self.dim, self.ppc, self.h, self.rho0)
 
     @classmethod
     def parameters(cls) -> dict[str, object]:
-        """Every parameter with its default: floats for continuous ones, ints, strings and bools for
-        structural ones."""
+        """Every parameter with its default.
+
+        Returns:
+            Parameter name to default: floats for continuous ones, ints, strings and bools for
+            structural ones.
+        """
         out = {}
         for f in dataclasses.fields(cls):
             if isinstance(f.default, (int, float, str)):
@@ -116,7 +145,12 @@ class AbstractScene(eqx.Module):
     def parameter_values(self) -> dict[str, object]:
         """This scene's parameters as plain Python values (floats, ints, strings and bools).
 
-        ``dim`` is left out where it is 1 (a 1D run reads as it did before scenes had a ``dim``)."""
+        ``dim`` is left out where it is 1, so that a 1D run of a scene with a ``dim`` field reads as
+        a run of a 1D scene (which has no ``dim`` parameter).
+
+        Returns:
+            Parameter name to value.
+        """
         return {
             k: (getattr(self, k) if isinstance(v, (int, str)) else float(getattr(self, k)))
             for k, v in self.parameters().items()

@@ -1,13 +1,16 @@
 """The axis-aligned manufactured solution of Wallstedt & Guilkey (2008), in 1D, 2D and 3D."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
 from .._checks import check_finite, check_nonnegative, check_positive
 from .._util import as_float
 from ..materials import NeoHookean
-from .manufactured import AbstractDisplacementScene
+from ._displacement import AbstractDisplacementScene
 
 
 class AxisAligned(AbstractDisplacementScene):
@@ -33,16 +36,21 @@ class AxisAligned(AbstractDisplacementScene):
         dim: 1, 2 or 3 (static).
     """
 
-    name = "axis-aligned"
-    description = "axis-aligned manufactured solution (Wallstedt & Guilkey 2008), neo-Hookean, dim 1-3"
-    left = "symmetry"
-    right = "symmetry"
+    name: ClassVar[str] = "axis-aligned"
+    description: ClassVar[str] = (
+        "axis-aligned manufactured solution (Wallstedt & Guilkey 2008), neo-Hookean, dim 1-3"
+    )
+    left: ClassVar[str] = "symmetry"
+    right: ClassVar[str] = "symmetry"
+    traction: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
 
-    A: jnp.ndarray = eqx.field(converter=as_float, default=0.05)
-    lam: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
-    mu: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 16)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    A: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
+    lam: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    mu: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 16)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=16)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=2)
@@ -57,7 +65,6 @@ class AxisAligned(AbstractDisplacementScene):
         return NeoHookean(lam=self.lam, mu=self.mu)
 
     def displacement(self, X, t):
-        """``u(X, t)``, shape ``(dim,)``."""
         L = self.length
         phase = jnp.pi * jnp.arange(self.dim, dtype=X.dtype)
         return self.A * jnp.sin(2.0 * jnp.pi * X / L) * jnp.sin(self.wave_speed * jnp.pi * t / L + phase)

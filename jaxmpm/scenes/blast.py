@@ -1,7 +1,10 @@
 """A 2D (or 3D) blast: a charge of high-pressure gas expanding against the atmosphere."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
 from .._checks import check_positive, is_concrete
 from .._util import as_float
@@ -14,10 +17,10 @@ class Blast(AbstractScene):
 
     The charge is gas at rest with ``P = P0 J^-gamma - p_atm`` (gauge), ``P0 >> p_atm``. Its faces are
     free surfaces with zero gauge traction: the atmosphere acts as the ambient pressure on them, as
-    in the 1D gas slab (SPEC 6.4), and carries no mass. The box is the padded grid: a particle that
+    in the 1D gas slab (``GasSlab``), and carries no mass. The box is the padded grid: a particle that
     reaches its edge stops the run (``pad`` makes the box). The charge expands fastest along its
     diagonals, which shears the domains near its corners: where CPDI's parallelograms, each built
-    from its own ``F``, open gaps and overlaps, and MPQ's tracked corners stay shared.
+    from its own ``F``, open gaps and overlaps, and MPQ's tracked corners stay common to neighbours.
 
     The defaults (SI) are a mild charge, 1.5 bar of gas at 1.5 kg/m^3 (sound speed 374 m/s) in a 1 m
     square against 1 bar, which every interpolator runs for 300 steps of ``dt = h / (4 c)`` with MUSL
@@ -39,14 +42,22 @@ class Blast(AbstractScene):
         full: simulate the whole charge instead of a quarter (static).
     """
 
-    name = "blast"
-    description = "2D/3D blast: a gas charge at P0 expanding against p_atm (quarter, symmetry planes)"
+    name: ClassVar[str] = "blast"
+    description: ClassVar[str] = (
+        "2D/3D blast: a gas charge at P0 expanding against p_atm (quarter, symmetry planes)"
+    )
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
 
-    P0: jnp.ndarray = eqx.field(converter=as_float, default=1.5e5)
-    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
-    p_atm: jnp.ndarray = eqx.field(converter=as_float, default=1.0e5)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 16)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.5)
+    P0: Float[Array, ""] = eqx.field(converter=as_float, default=1.5e5)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
+    p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 16)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.5)
     cells: int = eqx.field(static=True, default=8)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=24)
@@ -65,12 +76,9 @@ class Blast(AbstractScene):
             )
 
     @property
-    def left(self):
+    def left(self) -> str:
+        """``"free"`` for the full charge, ``"symmetry"`` (the planes ``X_a = 0``) for a quarter."""
         return "free" if self.full else "symmetry"
-
-    @property
-    def right(self):
-        return "free"
 
     def material(self):
         return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=self.p_atm)

@@ -1,7 +1,11 @@
-"""The talk's adiabatic gas expansion with a manufactured solution (SPEC section 6.1)."""
+"""Adiabatic gas expansion with a manufactured solution, ``u = beta t X`` (Bonifasi-Lista, Brannon &
+Wiskin 2013)."""
+
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_finite
 from .._util import as_float
@@ -19,10 +23,10 @@ class GasExpansion(AbstractScene):
     every nodal acceleration vanishes at ``t = 0``. Along each axis the first step is the 1D one:
     boundary cells ``5/8``, interior and artificial cells exact.
 
-    The defaults (SI units) make the talk's times meaningful: with ``beta = 200 /s``, ``F`` grows to
-    1.02 by ``t = 0.0001`` and to 1.25 by ``t = 0.00125``. The gas is at 2 bar against 1 bar of
-    atmosphere; its sound speed at ``F = 1`` is about 529 m/s, so ``dt = 1e-5`` is a CFL number
-    ``dt (c + |v|) / h`` of about 0.06. A stiffer gas (``P0 = 1e6``) turns the kinematic errors of
+    The defaults (SI units) make the times of Bonifasi-Lista et al. meaningful: with ``beta = 200
+    /s``, ``F`` grows to 1.02 by ``t = 0.0001`` and to 1.25 by ``t = 0.00125``. The gas is at 2 bar
+    against 1 bar of atmosphere; its sound speed at ``F = 1`` is about 529 m/s, so ``dt = 1e-5`` is a
+    CFL number ``dt (c + |v|) / h`` of about 0.06. A stiffer gas (``P0 = 1e6``) turns the kinematic errors of
     SPQ and uGIMP into pressure waves that dominate everything else by ``t = 0.00125``.
 
     Attributes:
@@ -38,15 +42,20 @@ class GasExpansion(AbstractScene):
         dim: 1, 2 or 3; the body is a square or cube of ``cells^dim`` cells (static).
     """
 
-    name = "gas-expansion"
-    description = "adiabatic gas expansion, u = beta t X (the talk's manufactured solution), dim 1-3"
+    name: ClassVar[str] = "gas-expansion"
+    description: ClassVar[str] = "adiabatic gas expansion, u = beta t X (the talk's manufactured solution), dim 1-3"
+    left: ClassVar[str] = "free"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
 
-    beta: jnp.ndarray = eqx.field(converter=as_float, default=200.0)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=0.125)
-    P0: jnp.ndarray = eqx.field(converter=as_float, default=2.0e5)
-    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
-    p_atm: jnp.ndarray = eqx.field(converter=as_float, default=1.0e5)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    beta: Float[Array, ""] = eqx.field(converter=as_float, default=200.0)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=0.125)
+    P0: Float[Array, ""] = eqx.field(converter=as_float, default=2.0e5)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
+    p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=8)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=10)
@@ -61,7 +70,17 @@ class GasExpansion(AbstractScene):
     def initial_velocity(self, X):
         return self.beta * X
 
-    def exact(self, X, t):
+    def exact(self, X: Float[ArrayLike, " dim"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact fields of one material point.
+
+        Args:
+            X: reference position.
+            t: time.
+
+        Returns:
+            ``dict(x, v, F, sigma)``: ``x = (1 + beta t) X``, ``v = beta X``, ``F = (1 + beta t) I``
+            and the gas's stress at that ``F``.
+        """
         F = 1.0 + self.beta * t
         if self.dim == 1:
             F_mat = jnp.reshape(F, (1, 1)) * jnp.ones((1, 1), dtype=X.dtype)
@@ -69,7 +88,15 @@ class GasExpansion(AbstractScene):
             F_mat = F * jnp.eye(self.dim, dtype=X.dtype)
         return dict(x=F * X, v=self.beta * X, F=F_mat, sigma=self.material().stress(F_mat))
 
-    def traction(self, t):
+    def traction(self, t: Float[ArrayLike, ""]) -> tuple[Float[Array, " dim"], ...]:
+        """The traction the exact solution implies on every face, ``P N``.
+
+        Args:
+            t: time.
+
+        Returns:
+            One traction vector per face: low and high face of axis 0, then of axis 1, ...
+        """
         f = 1.0 + self.beta * t
         if self.dim == 1:
             sigma = self.material().stress(jnp.reshape(f, (1, 1)))[0]  # (dim,)

@@ -1,11 +1,15 @@
-"""Gas slab against the atmosphere: the calibration scene (SPEC 6.4)."""
+"""Gas slab against the atmosphere: the calibration scene."""
+
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
 from .._checks import check_positive, is_concrete
 from .._util import as_float
 from ..materials import AdiabaticGas
+from ..particles import Body
 from ._base import AbstractScene
 
 
@@ -26,16 +30,24 @@ class GasSlab(AbstractScene):
         h, rho0, cells, ppc, pad: as for every scene (``pad`` leaves room for the expansion).
     """
 
-    name = "gas-slab"
-    description = "1D gas slab at P0 against p_atm: wall at 0, free surface at L (calibration scene)"
-    left = "wall"
-    right = "free"
+    name: ClassVar[str] = "gas-slab"
+    description: ClassVar[str] = (
+        "1D gas slab at P0 against p_atm: wall at 0, free surface at L (calibration scene)"
+    )
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "wall"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
 
-    P0: jnp.ndarray = eqx.field(converter=as_float, default=3.0e5)
-    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
-    p_atm: jnp.ndarray = eqx.field(converter=as_float, default=1.0e5)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 32)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    P0: Float[Array, ""] = eqx.field(converter=as_float, default=3.0e5)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
+    p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 32)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=32)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=192)
@@ -54,15 +66,27 @@ class GasSlab(AbstractScene):
         return jnp.zeros_like(X)
 
     @property
-    def F_eq(self):
+    def F_eq(self) -> Float[Array, ""]:
+        """The equilibrium stretch ``(P0 / p_atm)^(1 / gamma)``, about which the slab oscillates."""
         return (self.P0 / self.p_atm) ** (1.0 / self.gamma)
 
 
-def free_surface(x, F, corners, body) -> jnp.ndarray:
+def free_surface(
+    x: Float[Array, "*batch n 1"],
+    F: Float[Array, "*batch n 1 1"],
+    corners: Float[Array, "*batch nc 1"] | None,
+    body: Body,
+) -> Float[Array, "*batch"]:
     """The free-surface position: the last particle's right domain edge (its tracked corner under MPQ).
 
-    ``x``, ``F`` and ``corners`` (``None`` unless tracked) may carry leading axes (a saved history, an
-    ensemble): the result has those axes.
+    Args:
+        x: particle centres, with any leading axes (a saved history, an ensemble).
+        F: deformation gradients, with the same leading axes.
+        corners: MPQ's tracked corners, with the same leading axes, or ``None`` (not tracked).
+        body: the reference configuration.
+
+    Returns:
+        ``x_R``, with the leading axes of ``x``.
     """
     if corners is not None:
         return corners[..., body.corner_ids[-1, 1], 0]

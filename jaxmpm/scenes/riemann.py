@@ -1,7 +1,10 @@
 """The isentropic Riemann problem of the adiabatic gas (the p-system), with its exact solution."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._checks import check_finite, check_int, check_nonnegative, check_positive, is_concrete
 from .._util import as_float
@@ -29,18 +32,24 @@ class Riemann(AbstractScene):
         h, cells (even, so ``X0`` is a cell face), ppc, pad: as for every scene.
     """
 
-    name = "riemann"
-    description = "1D isentropic gas Riemann problem (p-system), exact star state, fans and shocks"
+    name: ClassVar[str] = "riemann"
+    description: ClassVar[str] = (
+        "1D isentropic gas Riemann problem (p-system), exact star state, fans and shocks"
+    )
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "free"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
 
-    F_left: jnp.ndarray = eqx.field(converter=as_float, default=0.5)
-    v_left: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
-    F_right: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
-    v_right: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
-    P0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
-    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
-    p_atm: jnp.ndarray = eqx.field(converter=as_float, default=0.0)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 64)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    F_left: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
+    v_left: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    F_right: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    v_right: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    P0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
+    p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 64)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=64)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=8)
@@ -68,20 +77,33 @@ class Riemann(AbstractScene):
         return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=self.p_atm)
 
     @property
-    def X0(self):
+    def X0(self) -> Float[Array, ""]:
+        """Where the two states meet, ``L / 2``."""
         return 0.5 * self.length
 
-    def waves(self) -> dict:
-        """Star state and wave speeds (see ``jaxmpm.exact.riemann_waves``)."""
+    def waves(self) -> dict[str, Array]:
+        """Star state and wave speeds.
+
+        Returns:
+            The dict of ``jaxmpm.exact.riemann_waves``.
+        """
         return riemann_waves(*self._args())
 
     @property
-    def t_valid(self):
+    def t_valid(self) -> Float[Array, ""]:
         """When the fastest wave reaches an end of the body (the exact solution holds until then)."""
         w = self.waves()
         return jnp.minimum(self.X0 / -w["a1"], (self.length - self.X0) / w["b2"])
 
-    def initial_position(self, X):
+    def initial_position(self, X: Float[ArrayLike, " 1"]) -> Float[Array, " 1"]:
+        """The deformed start: ``F_left X`` left of ``X0``, continuing with slope ``F_right``.
+
+        Args:
+            X: reference position of one material point.
+
+        Returns:
+            Its position at ``t = 0``.
+        """
         return jnp.where(X < self.X0, self.F_left * X, self.F_left * self.X0 + self.F_right * (X - self.X0))
 
     def initial_velocity(self, X):
@@ -90,11 +112,28 @@ class Riemann(AbstractScene):
     def _stress(self, F):
         return self.material().stress(jnp.reshape(F, (1, 1)))[:, 0]
 
-    def traction(self, t):
+    def traction(self, t: Float[ArrayLike, ""]) -> tuple[Float[Array, " 1"], Float[Array, " 1"]]:
+        """Each end's state's traction ``sigma n``, exact until a wave reaches the end.
+
+        Args:
+            t: time.
+
+        Returns:
+            ``(left, right)``.
+        """
         del t
         return -self._stress(self.F_left), self._stress(self.F_right)
 
-    def exact(self, X, t):
+    def exact(self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact self-similar solution at one material point (``jaxmpm.exact.riemann_solution``).
+
+        Args:
+            X: reference position.
+            t: time.
+
+        Returns:
+            ``dict(x, v, F, sigma)``.
+        """
         positive = t > 0
         ts = jnp.where(positive, t, 1.0)
         xi = jnp.where(positive, (X[0] - self.X0) / ts, jnp.where(X[0] < self.X0, -jnp.inf, jnp.inf))
@@ -104,15 +143,37 @@ class Riemann(AbstractScene):
         F_mat = jnp.reshape(F, (1, 1))
         return dict(x=x, v=jnp.reshape(v, (1,)), F=F_mat, sigma=self.material().stress(F_mat))
 
-    def smooth(self, X, t, margin=0.05):
-        """Particles farther than ``margin L`` (reference length) from every wave edge."""
+    def smooth(
+        self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""], margin: float = 0.05
+    ) -> Bool[Array, ""]:
+        """Whether a particle is farther than ``margin L`` (reference length) from every wave edge.
+
+        Args:
+            X: reference position.
+            t: time.
+            margin: the distance, as a fraction of ``L``.
+
+        Returns:
+            ``True`` away from the waves' edges.
+        """
         w = self.waves()
         edges = jnp.stack([w["a1"], w["b1"], w["a2"], w["b2"]]) * t + self.X0
         return jnp.all(jnp.abs(X[0] - edges) > margin * self.length)
 
-    def star(self, X, t, margin=0.05):
-        """Particles in the star region, farther than ``margin L`` from the waves bounding it, left and
-        right of ``X0`` (on the two sides the gas went through different waves)."""
+    def star(
+        self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""], margin: float = 0.05
+    ) -> tuple[Bool[Array, ""], Bool[Array, ""]]:
+        """Whether a particle is in the star region, farther than ``margin L`` from the waves bounding it.
+
+        Args:
+            X: reference position.
+            t: time.
+            margin: the distance, as a fraction of ``L``.
+
+        Returns:
+            ``(left, right)``: in the star region left and right of ``X0`` (on the two sides the gas
+            went through different waves).
+        """
         w = self.waves()
         xi_lo, xi_hi = self.X0 + w["b1"] * t, self.X0 + w["a2"] * t
         inside = (X[0] > xi_lo + margin * self.length) & (X[0] < xi_hi - margin * self.length)

@@ -1,7 +1,10 @@
-"""Adiabatic gas expanding into vacuum: a centred rarefaction with an exact solution (SPEC 6.5)."""
+"""Adiabatic gas expanding into vacuum: a centred rarefaction with an exact solution."""
+
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._checks import check_positive
 from .._util import as_float
@@ -27,15 +30,19 @@ class VacuumExpansion(AbstractScene):
         h, cells, ppc, pad: as for every scene.
     """
 
-    name = "vacuum-expansion"
-    description = "1D gas expanding into vacuum (centred rarefaction, exact), wall at 0"
-    left = "wall"
-    right = "free"
+    name: ClassVar[str] = "vacuum-expansion"
+    description: ClassVar[str] = "1D gas expanding into vacuum (centred rarefaction, exact), wall at 0"
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "wall"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
 
-    P0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
-    gamma: jnp.ndarray = eqx.field(converter=as_float, default=1.4)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=1.0 / 32)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    P0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 32)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=32)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=170)
@@ -47,11 +54,13 @@ class VacuumExpansion(AbstractScene):
         return AdiabaticGas(P0=self.P0, gamma=self.gamma, p_atm=0.0)
 
     @property
-    def c0(self):
+    def c0(self) -> Float[Array, ""]:
+        """The sound speed of the gas at rest, ``sqrt(gamma P0 / rho0)``."""
         return jnp.sqrt(self.gamma * self.P0 / self.rho0)
 
     @property
-    def t_valid(self):
+    def t_valid(self) -> Float[Array, ""]:
+        """When the rarefaction's head reaches the wall, ``L / c0`` (the exact solution holds until then)."""
         return self.length / self.c0
 
     def initial_velocity(self, X):
@@ -60,7 +69,17 @@ class VacuumExpansion(AbstractScene):
     def _point(self, X, t):
         return vacuum_expansion(X, t, self.length, self.P0, self.gamma, self.rho0)
 
-    def exact(self, X, t):
+    def exact(self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact fields of one particle (``jaxmpm.exact.vacuum_expansion``).
+
+        Args:
+            X: reference position of the particle's centre.
+            t: time.
+
+        Returns:
+            ``dict(x, v, F, sigma)``: ``F`` the exact average over the particle's domain, the others
+            point values at its centre.
+        """
         r0 = 0.5 * self.h / self.ppc
         x, v, F_point = self._point(X[0], t)
         x_lo, _, _ = self._point(X[0] - r0, t)
@@ -69,7 +88,18 @@ class VacuumExpansion(AbstractScene):
         sigma = self.material().stress(jnp.reshape(F_point, (1, 1)))
         return dict(x=jnp.reshape(x, (1,)), v=jnp.reshape(v, (1,)), F=F, sigma=sigma)
 
-    def smooth(self, X, t, margin=0.1):
-        """Particles farther than ``margin L`` (reference length) from the head and the front."""
+    def smooth(
+        self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""], margin: float = 0.1
+    ) -> Bool[Array, ""]:
+        """Whether a particle is farther than ``margin L`` (reference length) from the head and the front.
+
+        Args:
+            X: reference position.
+            t: time.
+            margin: the distance, as a fraction of ``L``.
+
+        Returns:
+            ``True`` away from both.
+        """
         head = self.length - self.c0 * t
         return (jnp.abs(X[0] - head) > margin * self.length) & (X[0] < (1.0 - margin) * self.length)

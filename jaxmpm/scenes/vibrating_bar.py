@@ -1,7 +1,10 @@
-"""Vibrating elastic bar, fixed at 0 and free at L (SPEC section 6.3)."""
+"""Vibrating elastic bar, fixed at 0 and free at L."""
+
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_finite, check_positive
 from .._util import as_float
@@ -21,15 +24,20 @@ class VibratingBar(AbstractScene):
         h, rho0, cells, ppc, pad: as for every scene.
     """
 
-    name = "vibrating-bar"
-    description = "1D linear elastic bar, first mode, wall at 0, free at L (exact solution)"
-    left = "wall"
-    right = "free"
+    name: ClassVar[str] = "vibrating-bar"
+    description: ClassVar[str] = "1D linear elastic bar, first mode, wall at 0, free at L (exact solution)"
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "wall"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
 
-    E: jnp.ndarray = eqx.field(converter=as_float, default=100.0)
-    v0: jnp.ndarray = eqx.field(converter=as_float, default=0.1)
-    h: jnp.ndarray = eqx.field(converter=as_float, default=0.0625)
-    rho0: jnp.ndarray = eqx.field(converter=as_float, default=1.0)
+    E: Float[Array, ""] = eqx.field(converter=as_float, default=100.0)
+    v0: Float[Array, ""] = eqx.field(converter=as_float, default=0.1)
+    h: Float[Array, ""] = eqx.field(converter=as_float, default=0.0625)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=16)
     ppc: int = eqx.field(static=True, default=2)
     pad: int = eqx.field(static=True, default=2)
@@ -39,11 +47,13 @@ class VibratingBar(AbstractScene):
         check_finite("v0", self.v0)
 
     @property
-    def k(self):
+    def k(self) -> Float[Array, ""]:
+        """The wavenumber of the first mode, ``pi / (2 L)``."""
         return jnp.pi / (2.0 * self.length)
 
     @property
-    def omega(self):
+    def omega(self) -> Float[Array, ""]:
+        """The angular frequency of the first mode, ``k sqrt(E / rho0)``."""
         return self.k * jnp.sqrt(self.E / self.rho0)
 
     def material(self):
@@ -52,7 +62,16 @@ class VibratingBar(AbstractScene):
     def initial_velocity(self, X):
         return self.v0 * jnp.sin(self.k * X)
 
-    def exact(self, X, t):
+    def exact(self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact fields of one material point.
+
+        Args:
+            X: reference position.
+            t: time.
+
+        Returns:
+            ``dict(x, v, F, sigma)`` with ``u = (v0 / omega) sin(omega t) sin(k X)``.
+        """
         k, w = self.k, self.omega
         amp = self.v0 / w * jnp.sin(w * t)
         u = amp * jnp.sin(k * X)

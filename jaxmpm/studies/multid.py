@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import jaxmpm as jm
-from jaxmpm.interpolators.cpdi import parallelogram_corners
+from jaxmpm.particles import parallelogram_corners
 
 from ._runtime import machine, require_float64
 
