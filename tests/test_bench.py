@@ -17,6 +17,8 @@ from jaxmpm import cli
 from jaxmpm import status as st_bits
 from jaxmpm._util import contract
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize(
     "spec, a, b",

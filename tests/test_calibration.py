@@ -14,6 +14,8 @@ import jaxmpm as jm
 from jaxmpm import calibrate as cal
 from jaxmpm import reference
 
+pytestmark = pytest.mark.slow
+
 TRUTH = dict(gamma=1.4, P0=3.0e5)
 TS = np.linspace(0.0, 12e-3, 61)  # through the first turnaround: gamma and P0 are both identifiable
 

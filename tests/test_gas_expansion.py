@@ -49,6 +49,7 @@ def test_musl_with_pic_smooths_twice(interpolator):
     np.testing.assert_allclose(growth, expected, rtol=TOL, atol=0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ordering", ["usl", "musl"])
 @pytest.mark.parametrize("layers", [1, 2])
 def test_artificial_cells_make_first_step_exact(interpolator, transfer, layers, ordering):

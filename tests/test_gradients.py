@@ -10,10 +10,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import INTERPOLATORS, TRANSFERS
+from helpers import INTERPOLATORS, TRANSFERS
 
 import jaxmpm as jm
 from jaxmpm.cli import main
+
+pytestmark = pytest.mark.slow
 
 GAS = jm.GasExpansion(beta=173.0, h=0.11, P0=1.9e5, gamma=1.37, p_atm=0.93e5, rho0=1.07, cells=4)
 BAR = jm.VibratingBar(E=97.0, v0=0.13, h=0.061, rho0=1.03, cells=6)

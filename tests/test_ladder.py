@@ -168,6 +168,7 @@ def test_manufactured_field_that_starts_deformed():
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene_kind", ["neo-hookean small", "vibrating-bar"])
 def test_second_order_in_displacement(scene_kind):
     """Must-show: order >= 1.8 in x for at least one interpolator. On the small-amplitude neo-Hookean
@@ -190,6 +191,7 @@ def test_second_order_in_displacement(scene_kind):
         assert min(orders) >= 1.8, (type(interp).__name__, errs, orders)
 
 
+@pytest.mark.slow
 def test_spq_does_not_converge_where_particles_cross_cells():
     """Pinned failures to converge (a result, not a bug): point-particle SPQ on the gas manufactured
     solution (large stress at rest: cell-crossing noise) and on the large-amplitude neo-Hookean."""
@@ -209,6 +211,7 @@ def test_spq_does_not_converge_where_particles_cross_cells():
 # ---------------------------------------------------------------- fronts: Riemann and vacuum
 
 
+@pytest.mark.slow
 def test_riemann_star_state_within_one_percent_and_smooth_errors_decrease():
     smooth_errs = []
     for cells in (64, 128, 256, 512):
@@ -227,6 +230,7 @@ def test_riemann_star_state_within_one_percent_and_smooth_errors_decrease():
     assert all(b < a for a, b in zip(smooth_errs[:-1], smooth_errs[1:])), smooth_errs
 
 
+@pytest.mark.slow
 def test_vacuum_expansion_errors_decrease_away_from_the_fronts():
     cpdi, spq = [], []
     for cells in (32, 64, 128):
@@ -264,6 +268,7 @@ def test_run_to_t_end_lands_exactly_and_respects_the_cfl_step():
     assert 0 < dts[-1] <= dts[-2] * (1 + 1e-12)
 
 
+@pytest.mark.slow
 def test_run_to_t_end_is_differentiable_and_vmaps():
     sc = jm.Manufactured(A=0.01)
 
@@ -316,6 +321,7 @@ def test_artificial_viscosity_acts_in_compression_only():
 # ---------------------------------------------------------------- the studies
 
 
+@pytest.mark.slow
 def test_stability_sweep_names_every_breakdown():
     """Must-show: a stiff sweep (vmapped, one status per member) ends with no silent NaN. Every member
     either finished with a finite state and error, or stopped at a named step, particle and quantity
@@ -339,6 +345,7 @@ def test_stability_sweep_names_every_breakdown():
     assert sum(v.startswith("broken") for v in verdicts) >= 5
 
 
+@pytest.mark.slow
 def test_convergence_study_writes_orders(tmp_path):
     from jaxmpm.studies import convergence
 
@@ -351,6 +358,7 @@ def test_convergence_study_writes_orders(tmp_path):
     assert (tmp_path / "orders.csv").exists() and (tmp_path / "runs.csv").exists()
 
 
+@pytest.mark.slow
 def test_work_precision_cli(tmp_path):
     from jaxmpm.cli import main
 

@@ -1,44 +1,128 @@
-"""A scene carries only what it needs: the compiled step holds nothing else (STYLE)."""
+"""A scene carries only what it needs: the compiled step holds nothing else.
 
+Optional physics (traction, body force, artificial cells) and optional state (MPQ's tracked corners,
+APIC's affine matrices) are decided by Python structure while tracing, so a step without them has
+none of their operations and none of their arrays in its jaxpr.
+"""
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+import pytest
+from helpers import INTERPOLATORS
+from jaxtyping import Array, Float
 
 import jaxmpm as jm
 
-
-class NoTraction(jm.GasExpansion):
-    def traction(self, t):
-        return None, None
+CELLS, PPC = 7, 3  # 21 particles, 22 corners, 28 grid nodes: shapes no other array of the step has
 
 
-class WithBodyForce(NoTraction):
-    def body_force(self, X, t):
-        return -9.81 * jnp.ones_like(X)
+class Gas(jm.AbstractScene):
+    """A 1D gas bar whose traction and body force are whatever the test gives it."""
+
+    name: ClassVar[str] = "lean-gas"
+    description: ClassVar[str] = "a gas bar with optional traction and body force"
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "free"
+    right: ClassVar[str] = "free"
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
+
+    traction: Callable | None = eqx.field(static=True, default=None)
+    body_force: Callable | None = eqx.field(static=True, default=None)
+    h: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=0.125)
+    rho0: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=1.0)
+    cells: int = eqx.field(static=True, default=CELLS)
+    ppc: int = eqx.field(static=True, default=PPC)
+    pad: int = eqx.field(static=True, default=10)
+
+    def material(self):
+        return jm.AdiabaticGas(P0=2.0e5, gamma=1.4, p_atm=1.0e5)
+
+    def initial_velocity(self, X):
+        return 200.0 * X
 
 
-def count(scene, artificial_cells=0, interpolator=None, transfer=None):
+def traction(t):
+    return -jnp.ones((1,)), jnp.ones((1,))
+
+
+def gravity(X, t):
+    return -9.81 * jnp.ones_like(X)
+
+
+def step_jaxpr(scene, interpolator=None, transfer=None, artificial_cells=0):
     model = jm.Model(scene, interpolator or jm.SPQ(), transfer or jm.FLIP(), artificial_cells)
-    s = jm.setup(model)
-    state = jm.initial_state(model, s)
-    jaxpr = jax.make_jaxpr(lambda st: jm.step(model, s, st, jnp.asarray(1e-5)))(state)
-    prims = [e.primitive.name for e in jaxpr.jaxpr.eqns]
-    return len(prims), prims.count("scatter-add")
+    setup = jm.setup(model)
+    state = jm.initial_state(model, setup)
+    return state, jax.make_jaxpr(lambda st: jm.step(model, setup, st, jnp.asarray(1e-5)))(state).jaxpr
+
+
+def equations(jaxpr):
+    """Every equation of a jaxpr, those of its sub-jaxprs (jit, cond, scan, custom rules) included."""
+    for eqn in jaxpr.eqns:
+        yield eqn
+        for param in eqn.params.values():
+            for sub in param if isinstance(param, (tuple, list)) else (param,):
+                inner = getattr(sub, "jaxpr", sub)
+                if isinstance(inner, jax.extend.core.Jaxpr):
+                    yield from equations(inner)
+
+
+def shapes(jaxpr) -> list[tuple[int, ...]]:
+    """The shape of every array the step reads, makes or returns."""
+    out = [v.aval.shape for v in (*jaxpr.invars, *jaxpr.outvars) if hasattr(v.aval, "shape")]
+    for eqn in equations(jaxpr):
+        out += [v.aval.shape for v in eqn.outvars if hasattr(v.aval, "shape")]
+    return out
+
+
+def primitives(jaxpr) -> list[str]:
+    return [eqn.primitive.name for eqn in equations(jaxpr)]
 
 
 def test_step_holds_only_declared_physics():
-    base, base_scatters = count(NoTraction())
-    traction, traction_scatters = count(jm.GasExpansion())
-    body, body_scatters = count(WithBodyForce())
-    art, art_scatters = count(NoTraction(), artificial_cells=1)
-    assert base < traction and base < body and base < art
-    assert traction_scatters == base_scatters + 1  # the traction's one scatter
-    assert body_scatters == base_scatters + 1  # the body force's one scatter
-    assert art_scatters == base_scatters + 2  # artificial mass and momentum
-    full, _ = count(WithBodyForce(), artificial_cells=1)
-    assert full > body
+    base = primitives(step_jaxpr(Gas())[1])
+    with_traction = primitives(step_jaxpr(Gas(traction=traction))[1])
+    with_body_force = primitives(step_jaxpr(Gas(body_force=gravity))[1])
+    with_cells = primitives(step_jaxpr(Gas(), artificial_cells=1)[1])
+    assert len(base) < min(len(with_traction), len(with_body_force), len(with_cells))
+    assert with_traction.count("scatter-add") == base.count("scatter-add") + 1  # the traction's one scatter
+    assert with_body_force.count("scatter-add") == base.count("scatter-add") + 1  # the body force's
+    assert with_cells.count("scatter-add") == base.count("scatter-add") + 2  # artificial mass, momentum
+    both = primitives(step_jaxpr(Gas(body_force=gravity), artificial_cells=1)[1])
+    assert len(both) > len(with_body_force)
 
 
-def test_affine_and_corner_state_only_when_used():
-    spq_flip, _ = count(NoTraction())
-    spq_apic, _ = count(NoTraction(), transfer=jm.APIC())
-    assert spq_apic > spq_flip
+@pytest.mark.parametrize("name", list(INTERPOLATORS))
+def test_corners_are_in_the_step_only_for_mpq(name):
+    """Only MPQ tracks the shared corners of the particle domains: an (n + 1, 1) array that no other
+    interpolator's step reads, makes or returns, and that MPQ's step carries from input to output."""
+    state, jaxpr = step_jaxpr(Gas(), INTERPOLATORS[name])
+    n_corners = CELLS * PPC + 1
+    corner_arrays = [s for s in shapes(jaxpr) if s == (n_corners, 1)]
+    if name == "mpq":
+        assert state.corners.shape == (n_corners, 1)
+        in_shapes = [v.aval.shape for v in jaxpr.invars]
+        out_shapes = [v.aval.shape for v in jaxpr.outvars]
+        assert in_shapes.count((n_corners, 1)) == 1 and out_shapes.count((n_corners, 1)) == 1
+    else:
+        assert state.corners is None
+        assert corner_arrays == []
+
+
+@pytest.mark.parametrize("name", ["flip", "pic", "apic"])
+def test_affine_matrices_are_in_the_step_only_for_apic(name):
+    """APIC carries an affine matrix C per particle, an (n, 1, 1) state array beside F and sigma;
+    FLIP and PIC read and return only F and sigma of that shape."""
+    state, jaxpr = step_jaxpr(Gas(), transfer=jm.TRANSFERS[name]())
+    n = CELLS * PPC
+    matrices_in = [v.aval.shape for v in jaxpr.invars].count((n, 1, 1))
+    matrices_out = [v.aval.shape for v in jaxpr.outvars].count((n, 1, 1))
+    expected = 3 if name == "apic" else 2  # F, sigma (and C)
+    assert (state.C is not None) == (name == "apic")
+    assert matrices_in == expected and matrices_out == expected

@@ -21,6 +21,7 @@ def assert_states_identical(a, b):
             np.testing.assert_array_equal(np.asarray(x), np.asarray(y), err_msg=name)
 
 
+@pytest.mark.slow
 def test_chunked_equals_one_scan(interpolator, transfer):
     chunked = long_run.run(SCENE, interpolator, transfer=transfer, **KW)
     whole = jm.simulate(SCENE, interpolator, dt=1e-5, steps=95, artificial_cells=1, transfer=transfer)

@@ -57,6 +57,7 @@ def test_boundary_cells_five_eighths_along_every_axis(interpolator, dim):
     np.testing.assert_array_equal(np.asarray(sol.body.boundary), (expected_growth(dim) != 1).any(axis=1))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim, layers", [(2, 1), (2, 2), (3, 1)])
 def test_artificial_cells_make_the_first_step_exact(interpolator, dim, layers):
     _, sol = first_step(interpolator, dim, artificial_cells=layers)
@@ -74,6 +75,7 @@ def test_musl_with_pic_in_2d_is_the_1d_pattern():
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cpdi", "mpq"])
 def test_uniform_stress_balances_the_face_tractions_after_the_body_moved(name):
     """Put the exact state of t = 0.0005 (faces off the grid lines) in and take one step: the
@@ -150,6 +152,7 @@ def test_axis_aligned_exact_fields_and_body_force():
     np.testing.assert_allclose(np.asarray(ex1["F"])[0, 0], F[0, 0], rtol=1e-14)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, order", [("mpq", 1.5), ("cpdi", 0.9), ("gimp", 0.8)])
 def test_axis_aligned_converges_in_2d(name, order):
     """Measured orders in x (RMS), 8 -> 16 cells: MPQ 1.71, CPDI 1.09, GIMP 0.91 (16 -> 32: 1.81,
@@ -167,6 +170,7 @@ def blast(interp, steps, **kw):
     return scene, jm.simulate(scene, interp, dt=dt, steps=steps, ordering="musl", throw=False)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["spq", "gimp", "cpdi", "mpq"])
 def test_blast_full_charge_is_symmetric_and_conserves(name):
     """The whole charge keeps its point symmetry, its symmetry about the diagonal, zero momentum and
@@ -182,6 +186,7 @@ def test_blast_full_charge_is_symmetric_and_conserves(name):
     np.testing.assert_allclose(float(d["mass"]), float(scene.rho0) * float(scene.length) ** 2, rtol=1e-14)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["spq", "gimp", "mpq"])
 def test_blast_quarter_equals_the_full_charge(name):
     """Symmetry planes reproduce the matching quarter of the whole charge to round-off where no query
@@ -203,6 +208,7 @@ def test_blast_quarter_equals_the_full_charge(name):
     np.testing.assert_allclose(Ff, Fq, rtol=0, atol=1e-11)
 
 
+@pytest.mark.slow
 def test_blast_mpq_corners_stay_shared_cpdi_domains_separate():
     _, c = blast(jm.CPDI(), 60)
     _, m = blast(jm.MPQ(), 60)
@@ -223,6 +229,7 @@ def test_blast_mpq_corners_stay_shared_cpdi_domains_separate():
 # --- gradients and vmap in 2D ---
 
 
+@pytest.mark.slow
 def test_gradient_in_2d_matches_finite_differences():
     def err(beta):
         scene = jm.GasExpansion(dim=2, cells=2, pad=3, beta=beta)
@@ -236,6 +243,7 @@ def test_gradient_in_2d_matches_finite_differences():
     np.testing.assert_allclose(g, fd, rtol=1e-5)
 
 
+@pytest.mark.slow
 def test_vmap_ensemble_in_2d_matches_single_runs():
     scene = jm.GasExpansion(dim=2, cells=2, pad=3)
     betas = np.array([100.0, 200.0, 300.0])

@@ -2,7 +2,11 @@
 
 import csv
 
+import pytest
+
 from jaxmpm.cli import main
+
+pytestmark = pytest.mark.slow
 
 
 def test_study_talk_small(tmp_path, capsys):

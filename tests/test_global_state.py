@@ -1,0 +1,35 @@
+"""Library code never changes global state: importing jaxmpm, any of its modules or its plotting
+leaves float64, dtype promotion and matplotlib's backend as the user had them."""
+
+import subprocess
+import sys
+
+PROBE = """
+import importlib, pkgutil, sys
+import jax, matplotlib
+
+def state():
+    return (
+        bool(jax.config.jax_enable_x64),
+        str(jax.config.jax_numpy_dtype_promotion),
+        repr(dict.__getitem__(matplotlib.rcParams, "backend")),  # read without resolving it
+        "matplotlib.pyplot" in sys.modules and matplotlib.get_backend(),
+    )
+
+before = state()
+import jaxmpm
+names = [m.name for m in pkgutil.walk_packages(jaxmpm.__path__, "jaxmpm.") if not m.name.endswith("__main__")]
+for name in names:
+    importlib.import_module(name)
+after = state()
+print(len(names), before == after, before, after)
+"""
+
+
+def test_importing_jaxmpm_leaves_global_configuration_alone():
+    env = {"PATH": "", "JAX_PLATFORMS": "cpu"}  # no MPLBACKEND, no JAX_ENABLE_X64 from the test run
+    out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    n, same, *states = out.stdout.split(" ", 2)
+    assert int(n) >= 30  # every module of the package was imported
+    assert same == "True", states
