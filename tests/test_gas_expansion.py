@@ -1,4 +1,4 @@
-"""The talk's exact numbers (SPEC 6.1), to round-off in float64."""
+"""The talk's exact numbers for the gas expansion u = beta t X, to round-off in float64."""
 
 import jax.numpy as jnp
 import numpy as np

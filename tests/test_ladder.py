@@ -1,4 +1,4 @@
-"""The verification ladder (issue 4): scenes with exact answers, runs to an end time, observed orders.
+"""The verification ladder: scenes with exact answers, runs to an end time, observed orders.
 
 Exact solutions are checked against their own defining equations to round-off; MPM runs against them
 at several resolutions, with the observed orders pinned, including where a method does not converge.

@@ -1,5 +1,5 @@
-"""The constitutive models in tensor form (part of issue 8): each stress is its stored energy's
-derivative, the 1D readings are the SPEC's formulas exactly, the neo-Hookean stress is objective,
+"""The constitutive models in tensor form: each stress is its stored energy's
+derivative, the 1D readings are the 1D formulas exactly, the neo-Hookean stress is objective,
 and the generic wave speed from the energy agrees with every closed form."""
 
 import jax
@@ -62,7 +62,7 @@ def test_neo_hookean_is_objective(dim):
 def test_acoustic_speed_matches_the_closed_forms(name):
     mat = MATERIALS[name] if name != "elastic" else jm.LinearElastic(E=7.0e9)  # the 1D bar: nu = 0
     rho0 = jnp.asarray(2.5)
-    # (the small-strain bar's c = sqrt(E / rho0) of SPEC 5 leaves out the factor F of the Eulerian
+    # (the small-strain bar's c = sqrt(E / rho0) leaves out the factor F of the Eulerian
     # speed, which the energy-based one keeps: they agree at F = 1, where the model is meant)
     for f in (1.0,) if name == "elastic" else (0.6, 1.0, 1.7):
         F = jnp.full((1, 1), f)

@@ -1,4 +1,4 @@
-"""2D and 3D (issue 8): the talk's exact first-step numbers along every axis, the force balance that
+"""2D and 3D: the talk's exact first-step numbers along every axis, the force balance that
 makes them hold, the axis-aligned manufactured solution converging, the blast's symmetry,
 conservation and domain gaps, gradients and vmap, the command line and ParaView output."""
 

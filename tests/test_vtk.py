@@ -1,4 +1,4 @@
-"""ParaView output (part of issue 8, written for every dimension, used in 1D today): the files hold
+"""ParaView output (written for every dimension): the files hold
 exactly the run's values, the grid fields are the step's own particle-to-grid transfer, and a run
 that breaks down still leaves its good frames."""
 

@@ -43,7 +43,9 @@ class GasExpansion(AbstractScene):
     """
 
     name: ClassVar[str] = "gas-expansion"
-    description: ClassVar[str] = "adiabatic gas expansion, u = beta t X (the talk's manufactured solution), dim 1-3"
+    description: ClassVar[str] = (
+        "adiabatic gas expansion, u = beta t X (the talk's manufactured solution), dim 1-3"
+    )
     left: ClassVar[str] = "free"
     right: ClassVar[str] = "free"
     body_force: ClassVar[None] = None
