@@ -25,7 +25,6 @@ import json
 import math
 import os
 import pathlib
-import platform
 import subprocess
 import sys
 import time
@@ -37,6 +36,7 @@ import numpy as np
 
 import jaxmpm as jm
 from jaxmpm.status import NONFINITE
+from jaxmpm.studies import machine
 
 from ._baselines import BASELINES, PROBLEM, layout
 
@@ -359,21 +359,6 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, si
         for r in out["ensemble"]:
             r["dtype"] = dtype
     return out
-
-
-def machine() -> str:
-    """The machine, in one line.
-
-    Returns:
-        The processor, its core count and the operating system.
-    """
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()}"
 
 
 def run(
