@@ -1,12 +1,14 @@
 import os
 
 # The suite compiles several hundred small programs and runs each for a moment, so compiling is most
-# of its time: XLA's CPU backend at optimisation level 0 compiles them about a third faster.
+# of its time. XLA's CPU backend at optimisation level 0, with its classic (non-MLIR) fusion emitters,
+# compiles a reverse-mode run about 2.5 times faster (1.3 s -> 0.5 s measured) and halves the suite.
 os.environ["XLA_FLAGS"] = " ".join(
     (
         os.environ.get("XLA_FLAGS", ""),
         "--xla_backend_optimization_level=0",
         "--xla_llvm_disable_expensive_passes=true",
+        "--xla_cpu_use_fusion_emitters=false",
     )
 ).strip()
 
