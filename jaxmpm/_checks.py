@@ -6,8 +6,10 @@ they were concrete, or they are the user's own transformation.
 """
 
 import math
+import reprlib
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -21,6 +23,46 @@ def is_concrete(value) -> bool:
         ``False`` for a JAX tracer, else ``True``.
     """
     return not isinstance(value, jax.core.Tracer)
+
+
+def is_real(value) -> bool:
+    """Whether ``value`` is a real number or an array of them (bool, integer or float dtype).
+
+    Args:
+        value: anything concrete (a number, an array, a string, ``None``, ...).
+
+    Returns:
+        ``True`` for a real number or a real array; ``False`` for a string, ``None``, a complex number
+        or anything else numpy reads as non-numeric.
+    """
+    if isinstance(value, (str, bytes)):
+        return False
+    dtype = getattr(value, "dtype", None)
+    if dtype is None:
+        try:
+            dtype = np.asarray(value).dtype
+        except (TypeError, ValueError, OverflowError):  # ragged lists, objects numpy refuses
+            return False
+    try:
+        dtype = np.dtype(dtype)
+    except TypeError:
+        return False
+    return any(jnp.issubdtype(dtype, kind) for kind in (jnp.bool_, jnp.integer, jnp.floating))
+
+
+def check_real(name: str, value) -> None:
+    """Check that a concrete value is a real number (or an array of them); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value, as given (before any conversion).
+
+    Raises:
+        ValueError: ``value`` is a string, ``None``, a complex number or another non-number:
+            ``"{name} must be a real number, got {value!r}"`` (a long value shortened).
+    """
+    if is_concrete(value) and not is_real(value):
+        raise ValueError(f"{name} must be a real number, got {_brief(value)}")
 
 
 def check_finite(name: str, value) -> None:
@@ -124,6 +166,16 @@ def check_int(name: str, value, minimum: int) -> None:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value}")
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = 40
+_REPR.maxother = 40
+
+
+def _brief(value) -> str:
+    """``repr(value)``, at most about 40 characters (a message stays one readable line)."""
+    return _REPR.repr(value)
 
 
 def _show(arr: np.ndarray) -> str:

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
+from . import _memory
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
 from ._step import Model, Setup, initial_state, setup, stable_dt, step
@@ -22,6 +23,10 @@ from .viscosity import ArtificialViscosity
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")
 """The ``State`` fields a ``SaveAt`` may name: the per-particle (and per-corner) arrays."""
+
+
+MAX_STEP_COUNT = 2**31 - 1
+"""The most steps one run may take: ``State.step`` is a 32-bit integer."""
 
 
 class SaveAt(eqx.Module):
@@ -133,6 +138,11 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
     else:
         check_positive("dt", dt)
         check_int("steps", steps, 0)
+    if steps > MAX_STEP_COUNT:
+        name = "max_steps" if isinstance(dt, ToEnd) else "steps"
+        raise ValueError(
+            f"{name} must be <= {MAX_STEP_COUNT} (the step counter is a 32-bit integer), got {steps}"
+        )
     check_int("artificial_cells", artificial_cells, 0)
     if not isinstance(checkpoint, bool):
         check_int("checkpoint", checkpoint, 1)
@@ -256,6 +266,28 @@ def advance(
     return run(state, rem), saved
 
 
+def finish_to_end(state: State, dt: ToEnd) -> State:
+    """The final state of a run to ``dt.t_end``: if its ``max_steps`` ran out before ``t_end``, that
+    is a failure of the run (``MAX_STEPS``, at the step after the last), not of a particle.
+
+    Args:
+        state: the state after the run's last step.
+        dt: the run's ``ToEnd``.
+
+    Returns:
+        ``state``, its status and failure step set when it fell short of ``t_end``.
+    """
+    short = (state.status == 0) & (state.t < dt.t_end)
+    return eqx.tree_at(
+        lambda z: (z.status, z.fail_step),
+        state,
+        (
+            jnp.where(short, st_bits.MAX_STEPS, state.status),
+            jnp.where(short, state.step + 1, state.fail_step),
+        ),
+    )
+
+
 def run_scan(
     model: Model, dt: Float[Array, ""] | ToEnd, steps: int, saveat: SaveAt, checkpoint: int | None
 ) -> Solution:
@@ -274,16 +306,8 @@ def run_scan(
     s = setup(model)
     state0 = initial_state(model, s)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
-    if isinstance(dt, ToEnd):  # max_steps ran out before t_end: a failure of the run, not of a particle
-        short = (state.status == 0) & (state.t < dt.t_end)
-        state = eqx.tree_at(
-            lambda z: (z.status, z.fail_step),
-            state,
-            (
-                jnp.where(short, st_bits.MAX_STEPS, state.status),
-                jnp.where(short, state.step + 1, state.fail_step),
-            ),
-        )
+    if isinstance(dt, ToEnd):
+        state = finish_to_end(state, dt)
     if saved is None:
         return Solution(state, s.body, None, None)
     first = save_fields(state0, saveat.fields)
@@ -387,7 +411,8 @@ def prepare(
         ``steps`` is ``max_steps``); ``saveat`` the default ``SaveAt()`` when none was given.
 
     Raises:
-        ValueError: bad input.
+        ValueError: bad input, or a run too large for the memory of the device (estimated from
+            its sizes, before anything is allocated).
     """
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
@@ -403,6 +428,7 @@ def prepare(
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
     model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit, ordering, viscosity)
+    _memory.check_run(model, steps, saveat)
     return model, dt if isinstance(dt, ToEnd) else as_float(dt), steps, saveat
 
 

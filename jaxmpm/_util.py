@@ -5,19 +5,30 @@ import operator
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Float, Real
+from jaxtyping import Array, Float
+
+from ._checks import check_real
 
 
-def as_float(x: Real[ArrayLike, ""]) -> Float[Array, ""]:
+def as_float(x: object) -> Float[Array, ""]:
     """A continuous parameter as a 0-d array of the default float dtype (float64 once x64 is enabled):
     the converter of every parameter field of scenes, materials and runs.
 
+    It takes any object and checks it itself (a tracer passes unchanged in value), so that a scene
+    can name the parameter first: ``AbstractScene`` checks its fields by name before they are
+    converted ("beta must be a real number, got 'abc'").
+
     Args:
-        x: a number, or a 0-d array (a tracer under ``jax.grad`` or ``jax.vmap``).
+        x: a real number (``Real[ArrayLike, ""]``), or a 0-d array (a tracer under ``jax.grad`` or
+            ``jax.vmap``).
 
     Returns:
         The array.
+
+    Raises:
+        ValueError: ``x`` is not a real number (a string, ``None``, a complex number, ...).
     """
+    check_real("a continuous parameter", x)
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 

@@ -42,7 +42,22 @@ from ._simulate import SaveAt, simulate
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .scenes.gas_slab import free_surface
-from .sensitivity import check_names
+from .sensitivity import check_names, continuous_parameters
+
+NOT_FITTED = {"h": "the grid spacing", "dt": "the model's time step"}
+"""Continuous inputs of a run that are not material constants, so ``calibrate`` does not fit them."""
+
+
+def fittable(scene: AbstractScene) -> tuple[str, ...]:
+    """The names ``calibrate`` can fit: the scene's continuous parameters but ``h`` and ``dt``.
+
+    Args:
+        scene: the scene (or its class).
+
+    Returns:
+        The names, in the scene's order (for the gas slab ``P0, gamma, p_atm, rho0``).
+    """
+    return tuple(n for n in continuous_parameters(scene) if n not in NOT_FITTED)
 
 
 class CalibrationError(RuntimeError):
@@ -154,14 +169,21 @@ def calibrate(
         A ``Fit``.
 
     Raises:
-        ValueError: bad input (names that are not continuous parameters, ``dt``, an unknown method,
-            data of mismatched shapes).
+        ValueError: bad input (names that are not continuous parameters, ``h`` or ``dt``, a name
+            given twice, an unknown method, data of mismatched shapes or not finite, times not
+            increasing from ``>= 0``).
         CalibrationError: every start broke down.
     """
     names = tuple(fit)
     check_names(scene, names)
-    if "dt" in names:
-        raise ValueError("dt is the model's time step, not a material constant; it cannot be fitted")
+    for n in names:
+        if n in NOT_FITTED:
+            raise ValueError(
+                f"{n} is {NOT_FITTED[n]}, not a material constant; it cannot be fitted; "
+                f"fittable: {', '.join(fittable(scene))}"
+            )
+    if len(set(names)) != len(names):
+        raise ValueError(f"fit names a parameter twice: {names}")
     if method not in ("lbfgs", "adam"):
         raise ValueError(f"method must be 'lbfgs' or 'adam', got {method!r}")
     check_int("iterations", iterations, 1)
@@ -170,6 +192,13 @@ def calibrate(
     x_data = jnp.asarray(x_data, dtype=scene.h.dtype)
     if t_data.ndim != 1 or t_data.shape != x_data.shape or t_data.size < 2:
         raise ValueError("t_data and x_data must be 1D arrays of the same length (>= 2)")
+    for what, a in (("t_data", t_data), ("x_data", x_data)):
+        bad = np.flatnonzero(~np.isfinite(np.asarray(a)))
+        if bad.size:
+            raise ValueError(f"{what} must be finite; entry {int(bad[0])} is {float(a[bad[0]])}")
+    t_host = np.asarray(t_data)
+    if t_host[0] < 0 or np.any(np.diff(t_host) <= 0):
+        raise ValueError("t_data must start at >= 0 and increase")
     if isinstance(starts, dict) or starts is None:
         starts = [starts or {}]
     base = {n: float(getattr(scene, n)) for n in names}

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from . import _memory
 from . import status as st_bits
 from ._simulate import Solution, checkpoint_block, prepare, run_scan
 from .interpolators import AbstractInterpolator
@@ -137,7 +138,8 @@ def ensemble(
 
     Raises:
         ValueError: bad ``vary`` (unknown or structural names, arrays of different lengths, values
-            that are not finite) or bad run arguments.
+            that are not finite), bad run arguments, or more members than the device's memory holds
+            (estimated before anything is allocated).
     """
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
@@ -157,6 +159,7 @@ def ensemble(
         raise ValueError(f"vary values must be finite; not finite in {bad}")
     simulate_kwargs.pop("throw", None)
     model, dt, steps, saveat = prepare(scene, interpolator, **simulate_kwargs)
+    _memory.check_run(model, steps, saveat, members=n)  # before the batch is laid out
     block = checkpoint_block(simulate_kwargs.get("checkpoint", False), steps)
 
     devices = list(jax.local_devices() if devices is None else devices)

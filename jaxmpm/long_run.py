@@ -15,12 +15,30 @@ The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
   ``format_version``, ``jaxmpm_version``, ``scene`` and ``params`` (every scene parameter),
   ``interpolator`` (name and options), ``transfer``, ``artificial_cells``, ``ordering``,
   ``cfl_limit``, ``dt``, ``steps`` (the target), ``chunk``, ``saveat``, ``checkpoint_every``,
-  ``step`` (steps done), ``complete``, ``status`` and ``failure`` (or null), ``saved_at`` (UTC).
+  ``viscosity`` (``[c_quad, c_lin]`` or null; a file without it has none), ``step`` (steps done),
+  ``complete``, ``status`` and ``failure`` (or null), ``saved_at`` (UTC).
 - ``state.<name>``: the state at ``step``: ``t``, ``step``, ``x`` (n, dim), ``v`` (n, dim),
   ``F`` (n, dim, dim), ``sigma`` (n, dim, dim), and where the run has them ``C``, ``corners``,
   ``x_traction``; ``status``, ``fail_step``, ``fail_particle``.
 - ``body.X`` (reference positions, n x dim) and ``body.boundary`` (boundary-cell particles).
 - ``history.ts`` and ``history.<name>`` (leading time axis) when the run saved a history.
+
+Safety:
+
+- ``run`` never replaces a file: if ``out`` exists it raises ``ValueError`` (naming the file and, for
+  a checkpoint, its scene and step) unless ``overwrite=True``. An ``out`` in a folder that does not
+  exist or cannot be written, or that is a folder, is a ``ValueError`` too; all of this before
+  anything is compiled. ``resume`` keeps writing to its own file.
+- ``load`` and ``resume`` check a file before using it: an empty, truncated or foreign file, a
+  metadata that is not JSON or lacks keys, an unknown scene, interpolator or transfer, parameters
+  the scene rejects, state arrays missing or of the wrong shape or dtype, and arrays that do not
+  match what the metadata names (``body.X`` against the reference positions of the named scene)
+  each raise ``ValueError`` with one line naming the file and what is wrong. A missing file is a
+  ``FileNotFoundError``.
+- Ctrl-C (``KeyboardInterrupt``) stops a run within a moment (the host polls the running chunk
+  instead of blocking on it), discards the chunk in flight, saves the last finished chunk to
+  ``out`` (atomically, as every save) and raises ``Interrupted``, a ``KeyboardInterrupt`` with
+  ``step``, ``saved_in`` and ``solution``; ``resume(out)`` then continues bit for bit.
 """
 
 from __future__ import annotations
@@ -30,7 +48,10 @@ import datetime
 import json
 import os
 import pathlib
+import signal
 import sys
+import tempfile
+import threading
 import time
 
 import equinox as eqx
@@ -46,6 +67,7 @@ from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import State
 from .scenes import SCENES, AbstractScene
 from .transfers import TRANSFERS
+from .viscosity import ArtificialViscosity
 
 FORMAT = "jaxmpm-run"
 """The ``format`` a saved run's metadata carries."""
@@ -53,6 +75,53 @@ FORMAT_VERSION = 1
 """The version of the file format this jaxmpm writes (and the newest it reads)."""
 STATE_NAMES = tuple(f.name for f in dataclasses.fields(State))
 """Every ``State`` field, each saved as ``state.<name>`` where the run has it."""
+META_KEYS = (
+    "format",
+    "format_version",
+    "scene",
+    "params",
+    "interpolator",
+    "transfer",
+    "artificial_cells",
+    "ordering",
+    "cfl_limit",
+    "dt",
+    "steps",
+    "chunk",
+    "saveat",
+    "checkpoint_every",
+    "step",
+)
+"""The ``meta`` keys that ``load`` and ``resume`` need (a saved run has more, see above)."""
+_POLL_S = 0.02  # the longest sleep between two looks at a running chunk
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")  # a zip archive (an .npz), with members or empty
+
+
+class Interrupted(KeyboardInterrupt):
+    """A long run stopped by Ctrl-C (``KeyboardInterrupt``), after saving its last finished chunk.
+
+    A ``KeyboardInterrupt`` itself, so that code which lets Ctrl-C through still does. The chunk
+    that was running is discarded; the state of the one before it is in ``solution`` and, with
+    ``out``, in the file, from which ``resume`` continues bit for bit.
+
+    Args:
+        message: one line, "interrupted at step N of M; saved in FILE (continue with
+            `jaxmpm resume FILE`)", or without the file when the run has none.
+        step: the last finished step.
+        saved_in: the file the run was saved to, or ``None`` (a run without ``out``).
+        solution: the ``Solution`` up to ``step`` (its history included).
+
+    Attributes:
+        step: as above.
+        saved_in: as above (a ``pathlib.Path``).
+        solution: as above.
+    """
+
+    def __init__(self, message: str, *, step: int, saved_in: pathlib.Path | None, solution: Solution):
+        super().__init__(message)
+        self.step = step
+        self.saved_in = saved_in
+        self.solution = solution
 
 
 @eqx.filter_jit
@@ -154,13 +223,18 @@ class _Recorder:
     def add(self, saved: dict | None, first_step: int, done: int, every: int | None, dt: float) -> None:
         if saved is None:
             return
+        new = {name: [] for name in saved}
+        ts = []
         for i in range(next(iter(saved.values())).shape[0]):
             nominal = first_step + (i + 1) * every
             if nominal > done:  # masked tail or frozen after a failure: not a state the run reached
                 break
             for name, arr in saved.items():
-                self.history[name].append(np.asarray(arr[i]))
-            self.ts.append(nominal * dt)
+                new[name].append(np.asarray(arr[i]))
+            ts.append(nominal * dt)
+        for name, items in new.items():  # all fields at once: the history stays consistent
+            self.history[name].extend(items)
+        self.ts.extend(ts)
 
     def solution(self, state: State) -> Solution:
         if self.history is None:
@@ -199,6 +273,59 @@ class _Recorder:
         _write_npz(path, arrays)
 
 
+class _DeferInterrupt:
+    """Hold Ctrl-C back while the host commits a finished chunk or writes the file.
+
+    In the main thread, with Python's own SIGINT handler installed, a SIGINT that arrives inside the
+    block is noted (``pending``) rather than raised, so that a chunk is either wholly recorded (and
+    saved) or not at all. Elsewhere (another thread, a handler of the user's) it changes nothing.
+    """
+
+    def __init__(self):
+        self.pending = False
+        self._previous = None
+
+    def _note(self, signum, frame):
+        self.pending = True
+
+    def __enter__(self):
+        if (
+            threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        ):
+            self._previous = signal.signal(signal.SIGINT, self._note)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
+
+
+def wait(tree):
+    """Wait until every array in ``tree`` is computed, answering Ctrl-C at once.
+
+    Polls ``jax.Array.is_ready`` with short sleeps instead of blocking in ``jax.block_until_ready``,
+    so that Python sees Ctrl-C at once. A sleep is at most ``_POLL_S`` and at most a twentieth of
+    the time waited so far, so that short chunks lose little to it.
+
+    Args:
+        tree: a pytree of arrays being computed (a compiled call's result).
+
+    Returns:
+        ``tree``, computed.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C while waiting (the computation is abandoned, not stopped).
+    """
+    t0 = time.perf_counter()
+    for leaf in jax.tree_util.tree_leaves(tree):
+        if isinstance(leaf, jax.Array):
+            while not leaf.is_ready():
+                time.sleep(min(_POLL_S, max(1e-4, 0.05 * (time.perf_counter() - t0))))
+    return tree
+
+
 def _drive(
     model, dt_arr, saveat, state, rec: _Recorder, *, steps, chunk, out, checkpoint_every, progress, throw
 ) -> tuple[Solution, float, float]:
@@ -207,35 +334,69 @@ def _drive(
     n_particles = rec.body.n
     limit = jnp.asarray(steps, dtype=jnp.int32)
     done = int(state.step)
-    t_compile = time.perf_counter()
-    compiled = _chunk.lower(model, dt_arr, state, limit, chunk, saveat).compile()  # once, for every chunk
-    t_start = time.perf_counter()
-    compile_s = t_start - t_compile
-    bar = _progress_bar(steps, done, show_progress(progress))
-    chunks_done = 0
+    bar = None
+    held = None  # the step that ``out`` holds, written by this drive
+    writing = False  # inside rec.save: an exception there leaves the previous file (the write is atomic)
+
+    def save():
+        nonlocal held, writing
+        writing = True
+        rec.save(out, state)
+        writing = False
+        held = int(state.step)
+
     try:
+        t_compile = time.perf_counter()
+        compiled = _chunk.lower(model, dt_arr, state, limit, chunk, saveat).compile()  # once, for every chunk
+        t_start = time.perf_counter()
+        compile_s = t_start - t_compile
+        bar = _progress_bar(steps, done, show_progress(progress))
+        chunks_done = 0
         while done < steps and int(state.status) == 0:
             t0 = time.perf_counter()
-            state, saved = compiled(model, dt_arr, state, limit, chunk, saveat)
-            state = jax.block_until_ready(state)
-            before, done = done, int(state.step)
-            rec.add(None if saved is None else jax.device_get(saved), before, done, every, dt)
-            chunks_done += 1
-            elapsed = time.perf_counter() - t0
-            bar.update(done - before)
-            bar.set_postfix_str(
-                f"t={float(state.t):.4g}  {n_particles * (done - before) / elapsed / 1e6:.1f} "
-                "M particle-steps/s",
-                refresh=False,
-            )
-            if out is not None and checkpoint_every and chunks_done % checkpoint_every == 0:
-                rec.save(out, state)
+            new_state, saved = wait(compiled(model, dt_arr, state, limit, chunk, saveat))
+            saved = None if saved is None else jax.device_get(saved)
+            with _DeferInterrupt() as held_back:  # record the chunk (and save it) whole, or not at all
+                state = new_state
+                before, done = done, int(state.step)
+                rec.add(saved, before, done, every, dt)
+                chunks_done += 1
+                elapsed = time.perf_counter() - t0
+                bar.update(done - before)
+                bar.set_postfix_str(
+                    f"t={float(state.t):.4g}  {n_particles * (done - before) / elapsed / 1e6:.1f} "
+                    "M particle-steps/s",
+                    refresh=False,
+                )
+                if out is not None and checkpoint_every and chunks_done % checkpoint_every == 0:
+                    save()
+            if held_back.pending:
+                raise KeyboardInterrupt
+        with _DeferInterrupt() as held_back:
+            if out is not None and held != done:
+                save()
+        if held_back.pending:
+            raise KeyboardInterrupt
+        wall_s = time.perf_counter() - t_start
+        sol = rec.solution(state)
+    except KeyboardInterrupt:
+        if writing:  # raised inside the write itself, not a Ctrl-C (held back there): out is as it was
+            raise
+        step = int(state.step)
+        if out is not None:
+            with _DeferInterrupt():  # a second Ctrl-C does not break this save
+                if held != step:
+                    save()
+        where = f"; saved in {out} (continue with `jaxmpm resume {out}`)" if out is not None else ""
+        raise Interrupted(
+            f"interrupted at step {step} of {steps}{where}",
+            step=step,
+            saved_in=out,
+            solution=rec.solution(state),
+        ) from None
     finally:
-        bar.close()
-    if out is not None:
-        rec.save(out, state)
-    wall_s = time.perf_counter() - t_start
-    sol = rec.solution(state)
+        if bar is not None:
+            bar.close()
     if int(state.status) and throw:
         where = f" Everything up to it is saved in {out}." if out is not None else ""
         raise SimulationError(failure_message(sol, dt) + where, sol)
@@ -254,8 +415,9 @@ def run(scene: AbstractScene, interpolator: AbstractInterpolator, **kwargs) -> S
         The ``Solution``.
 
     Raises:
-        ValueError: bad input, before anything is traced.
+        ValueError: bad input, before anything is traced (as for ``run_timed``).
         SimulationError: the run broke down (after saving it, with ``out``).
+        Interrupted: Ctrl-C (after saving the last finished chunk, with ``out``).
     """
     return run_timed(scene, interpolator, **kwargs)[0]
 
@@ -272,10 +434,12 @@ def run_timed(
     saveat: SaveAt | None = None,
     cfl_limit: float | None = 1.0,
     ordering: str = "usl",
+    viscosity: ArtificialViscosity | None = None,
     out: str | os.PathLike | None = None,
     checkpoint_every: int | None = None,
     progress: bool | None = None,
     throw: bool = True,
+    overwrite: bool = False,
 ) -> tuple[Solution, float, float]:
     """``simulate`` in chunks of ``chunk`` steps, with progress, checkpoints and a saved result.
 
@@ -289,27 +453,35 @@ def run_timed(
         saveat: as for ``simulate``. With ``saveat.every``, ``chunk`` must be a multiple of it.
         cfl_limit: as for ``simulate``.
         ordering: as for ``simulate``.
+        viscosity: as for ``simulate`` (saved with the run).
         chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end).
-        out: a ``.npz`` file to write the run to (at the end, at checkpoints, and on breakdown).
+        out: a ``.npz`` file to write the run to (at the end, at checkpoints, on breakdown and on
+            Ctrl-C). Its folder must exist and be writable.
         checkpoint_every: write ``out`` every this many chunks (``None``: only at the end).
         progress: show a progress bar (steps, simulated time, particle-steps per second). ``None``
             shows it in a terminal or notebook and not in pipes or CI; the environment variable
             ``JAXMPM_PROGRESS=0`` or ``1`` overrides that.
         throw: raise ``SimulationError`` on breakdown (after saving); else return with the status.
+        overwrite: replace ``out`` if it exists. Without it an existing ``out`` is an error, so that
+            no saved run is lost (continue a saved run with ``resume`` instead).
 
     Returns:
         ``(solution, compile_s, wall_s)``: the ``Solution`` (the same state as ``simulate`` gives),
         the time of the chunk's one compilation, and the time of everything after it.
 
     Raises:
-        ValueError: bad input, before anything is traced.
+        ValueError: bad input, before anything is traced; also an ``out`` that exists (without
+            ``overwrite``), is a folder, or lies in a folder that does not exist or is not writable.
         SimulationError: the run broke down (after saving it, with ``out``).
+        Interrupted: Ctrl-C (after saving the last finished chunk, with ``out``).
     """
     check_int("chunk", chunk, 1)
     if checkpoint_every is not None:
         check_int("checkpoint_every", checkpoint_every, 1)
         if out is None:
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
+    if not isinstance(overwrite, bool):
+        raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
     model, dt_arr, _, saveat = prepare(
         scene,
         interpolator,
@@ -320,17 +492,18 @@ def run_timed(
         saveat=saveat,
         cfl_limit=cfl_limit,
         ordering=ordering,
+        viscosity=viscosity,
     )
     if saveat.every is not None and chunk % saveat.every:
         raise ValueError(f"chunk must be a multiple of saveat.every, got chunk={chunk}, every={saveat.every}")
-    out = None if out is None else pathlib.Path(out)
-    state, body = _start(model)
+    params = _scene_params(scene)
+    out = None if out is None else _check_out(out, overwrite=overwrite)
     meta = dict(
         format=FORMAT,
         format_version=FORMAT_VERSION,
         jaxmpm_version=_version(),
         scene=scene.name,
-        params=_scene_params(scene),
+        params=params,
         interpolator=_interpolator_meta(interpolator),
         transfer=model.transfer.name,
         artificial_cells=artificial_cells,
@@ -341,7 +514,9 @@ def run_timed(
         chunk=chunk,
         saveat=dict(every=saveat.every, fields=list(saveat.fields)),
         checkpoint_every=checkpoint_every,
+        viscosity=None if viscosity is None else [float(viscosity.c_quad), float(viscosity.c_lin)],
     )
+    state, body = _start(model)
     history = ts = None
     if saveat.every is not None:
         first = jax.device_get(save_fields(state, saveat.fields))
@@ -363,8 +538,90 @@ def run_timed(
     )
 
 
+def _check_out(out, *, overwrite: bool, own: pathlib.Path | None = None) -> pathlib.Path:
+    """``out`` as a path, once it is known that the run can be written there without losing a file.
+
+    Args:
+        out: the file to write.
+        overwrite: whether an existing ``out`` may be replaced.
+        own: the saved run being resumed: ``out`` may be it.
+
+    Returns:
+        ``out`` as a ``pathlib.Path``.
+
+    Raises:
+        ValueError: ``out`` is not a path, is a folder, exists (unless ``overwrite`` or ``own``), or
+            lies in a folder that does not exist or cannot be written.
+    """
+    if not isinstance(out, (str, os.PathLike)):
+        raise ValueError(f"out must be a file path (a str or os.PathLike), got {out!r}")
+    path = pathlib.Path(out)
+    if path.is_dir():
+        raise ValueError(
+            f"out={path} is a folder, not a file; give a file to write the run to, e.g. {path / 'run.npz'}"
+        )
+    folder = path.parent
+    if not folder.exists():
+        raise ValueError(f"out={path}: the folder {folder} does not exist (create it first)")
+    if not folder.is_dir():
+        raise ValueError(f"out={path}: {folder} is not a folder")
+    if (
+        (path.exists() or path.is_symlink())
+        and not overwrite
+        and not (own is not None and _same_file(path, own))
+    ):
+        what = _describe(path)
+        hint = f", or continue it with `jaxmpm resume {path}`" if what.startswith("a jaxmpm") else ""
+        raise ValueError(
+            f"{path} already exists ({what}) and would be overwritten: pass overwrite=True "
+            f"(`--overwrite` on the command line) to replace it{hint}, or choose another file"
+        )
+    try:  # the save writes FILE.tmp next to FILE and renames it: the folder itself must be writable
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".probe")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise ValueError(f"out={path}: cannot write in the folder {folder} ({e.strerror or e})") from None
+    return path
+
+
+def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _describe(path: pathlib.Path) -> str:
+    """What an existing file is, in words, read cheaply: a jaxmpm checkpoint's scene and step, or
+    "an existing file"."""
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(4) not in _ZIP_MAGIC:
+                return "an existing file, not a jaxmpm checkpoint"
+        with np.load(path, allow_pickle=False) as f:
+            meta = json.loads(str(f["meta"]))
+        if meta.get("format") != FORMAT:
+            return "an existing file, not a jaxmpm checkpoint"
+        what = f"a jaxmpm checkpoint of {meta['scene']} at step {int(meta['step'])} of {int(meta['steps'])}"
+        if meta.get("failure"):
+            what += f", broken down at step {int(meta['failure']['step'])}"
+        elif meta.get("complete"):
+            what += ", complete"
+        return what
+    except Exception:  # whatever it holds, it is a file the user may want
+        return "an existing file"
+
+
 def load(path: str | os.PathLike) -> tuple[Solution, dict]:
-    """Read a run saved by ``run`` (or ``resume``).
+    """Read a run saved by ``run`` (or ``resume``), after checking it.
+
+    The checks: the file is a NumPy ``.npz`` archive that can be read whole; its ``meta`` is JSON
+    with the keys ``META_KEYS``, of this ``FORMAT`` and at most ``FORMAT_VERSION``; the scene,
+    interpolator and transfer it names exist and accept its parameters; every state (and history)
+    array the run needs is there with the shape and dtype the run gives it; and the arrays are those
+    of the run the metadata describes (``body.X`` and ``body.boundary`` equal those of the named
+    scene, ``state.step`` the saved ``step``).
 
     Args:
         path: the saved run.
@@ -374,54 +631,284 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
 
     Raises:
         FileNotFoundError: no file at ``path``.
-        ValueError: the file is not a jaxmpm run, or was written by a newer jaxmpm.
+        ValueError: one line naming the file and what is wrong: it is a folder, empty, truncated or
+            damaged, not a ``.npz`` archive, not a jaxmpm run, written by a newer jaxmpm, or its
+            metadata and arrays do not describe a run this jaxmpm can continue.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a file path (a str or os.PathLike), got {path!r}")
     sol, meta, _ = _load(pathlib.Path(path))
     return sol, meta
 
 
-def _load(path: pathlib.Path):
+def _check_file(path: pathlib.Path) -> None:
+    """Raise if ``path`` is not a file that could hold a saved run (cheap: its first bytes)."""
+    if path.is_dir():
+        raise ValueError(f"{path} is a folder, not a saved run (a .npz file written by `jaxmpm run --out`)")
     if not path.exists():
         raise FileNotFoundError(f"no saved run at {path}")
-    with np.load(path, allow_pickle=False) as f:
-        meta = json.loads(str(f["meta"]))
-        if meta.get("format") != FORMAT:
-            raise ValueError(f"{path} is not a jaxmpm run file (format {meta.get('format')!r})")
-        if meta.get("format_version", 0) > FORMAT_VERSION:
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(6)
+    except OSError as e:
+        raise ValueError(f"{path} cannot be read ({e.strerror or e})") from None
+    if not head:
+        raise ValueError(f"{path} is empty (0 bytes): not a jaxmpm checkpoint")
+    if head.startswith(b"\x93NUMPY"):
+        raise ValueError(f"{path} is a single NumPy array (.npy), not a jaxmpm checkpoint (an .npz archive)")
+    if head[:4] not in _ZIP_MAGIC:
+        raise ValueError(f"{path} is not a jaxmpm checkpoint (not a NumPy .npz archive)")
+
+
+def _read(path: pathlib.Path) -> tuple[dict, dict]:
+    """The checked ``meta`` and the raw arrays of a saved run."""
+    _check_file(path)
+    damaged = f"{path} is damaged or truncated (a .npz archive that cannot be read whole"
+    try:
+        f = np.load(path, allow_pickle=False)
+    except Exception as e:  # zipfile, numpy and OS errors alike: the archive cannot be opened
+        raise ValueError(f"{damaged}: {_reason(e)})") from None
+    with f:
+        if "meta" not in f.files:
+            raise ValueError(f"{path} is not a jaxmpm checkpoint (a .npz archive without 'meta')")
+        arrays = {}
+        for key in f.files:
+            try:
+                arrays[key] = f[key]
+            except Exception as e:
+                raise ValueError(f"{damaged}: array {key!r}: {_reason(e)})") from None
+    raw = arrays.pop("meta")
+    if raw.ndim != 0 or raw.dtype.kind not in "US":
+        raise ValueError(
+            f"{path}: its 'meta' is not a JSON string (found a {raw.dtype} array of shape {raw.shape})"
+        )
+    try:
+        meta = json.loads(str(raw))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: its 'meta' is not valid JSON ({e.msg} at character {e.pos})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: its 'meta' is not a JSON object (found {type(meta).__name__})")
+    if meta.get("format") != FORMAT:
+        raise ValueError(
+            f"{path} is not a jaxmpm run file (format {meta.get('format')!r}, expected {FORMAT!r})"
+        )
+    version = meta.get("format_version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise ValueError(f"{path}: its meta's format_version must be an integer, got {version!r}")
+    if version > FORMAT_VERSION:
+        raise ValueError(
+            f"{path} was written by a newer jaxmpm (format version {version}; this jaxmpm "
+            f"{_version()} reads up to {FORMAT_VERSION}): update jaxmpm to continue it"
+        )
+    missing = [k for k in META_KEYS if k not in meta]
+    if missing:
+        raise ValueError(
+            f"{path}: its meta lacks {', '.join(missing)} "
+            f"(a jaxmpm checkpoint's meta has {', '.join(META_KEYS)})"
+        )
+    return meta, arrays
+
+
+def _reason(e: Exception) -> str:
+    text = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
+
+
+def _names(registry) -> str:
+    return ", ".join(sorted(registry))
+
+
+def _kind(default) -> str:
+    """What a scene parameter with this default must be, in words (as ``_is`` reads them)."""
+    if isinstance(default, bool):
+        return "true or false"
+    if isinstance(default, int):
+        return "an integer"
+    if isinstance(default, str):
+        return "a string"
+    return "a number"
+
+
+def _is(value, kind: str) -> bool:
+    """Whether a JSON value is of ``kind`` (one of ``_kind``'s words, or "a number or null")."""
+    if kind == "true or false":
+        return isinstance(value, bool)
+    if isinstance(value, bool):
+        return False
+    if kind == "an integer":
+        return isinstance(value, int)
+    if kind == "a string":
+        return isinstance(value, str)
+    if kind == "a number or null" and value is None:
+        return True
+    return isinstance(value, (int, float))
+
+
+def _settings(path: pathlib.Path, meta: dict):
+    """The run the metadata describes: ``(scene, model, dt_arr, saveat)``, every name and value
+    checked (before anything is traced)."""
+    name = meta["scene"]
+    if not isinstance(name, str) or name not in SCENES:
+        raise ValueError(f"{path}: unknown scene {name!r}; allowed: {_names(SCENES)}")
+    params = meta["params"]
+    if not isinstance(params, dict):
+        raise ValueError(f"{path}: its meta's params must be a JSON object, got {params!r}")
+    allowed = SCENES[name].parameters()
+    unknown = [k for k in params if k not in allowed]
+    if unknown:
+        raise ValueError(
+            f"{path}: unknown parameter {unknown[0]!r} of scene {name}; allowed: {', '.join(allowed)}"
+        )
+    for key, value in params.items():
+        kind = _kind(allowed[key])
+        if not _is(value, kind):
             raise ValueError(
-                f"{path} was written by a newer jaxmpm (format version {meta['format_version']})"
+                f"{path}: the saved parameter {key} of scene {name} must be {kind}, got {value!r}"
             )
-        arrays = {k: f[k] for k in f.files if k != "meta"}
-    scene = SCENES[meta["scene"]](**meta["params"])
-    interp = _interpolator_from(meta["interpolator"])
-    model, dt_arr, _, saveat = prepare(
-        scene,
-        interp,
-        dt=meta["dt"],
-        steps=meta["steps"],
-        transfer=TRANSFERS[meta["transfer"]](),
-        artificial_cells=meta["artificial_cells"],
-        saveat=SaveAt(every=meta["saveat"]["every"], fields=tuple(meta["saveat"]["fields"])),
-        cfl_limit=meta["cfl_limit"],
-        ordering=meta["ordering"],
-    )
+    try:
+        scene = SCENES[name](**params)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{path}: scene {name} rejects the saved parameters: {e}") from None
+    interp_meta = meta["interpolator"]
+    if not isinstance(interp_meta, dict) or not isinstance(interp_meta.get("name"), str):
+        raise ValueError(
+            f"{path}: its meta's interpolator must be a JSON object with a name, got {interp_meta!r}"
+        )
+    if interp_meta["name"] not in INTERPOLATORS:
+        raise ValueError(
+            f"{path}: unknown interpolator {interp_meta['name']!r}; allowed: {_names(INTERPOLATORS)}"
+        )
+    try:
+        interp = _interpolator_from(interp_meta)
+    except (TypeError, ValueError) as e:
+        raise ValueError(
+            f"{path}: interpolator {interp_meta['name']} rejects the saved options: {e}"
+        ) from None
+    transfer = meta["transfer"]
+    if not isinstance(transfer, str) or transfer not in TRANSFERS:
+        raise ValueError(f"{path}: unknown transfer {transfer!r}; allowed: {_names(TRANSFERS)}")
+    for key, kind in (("dt", "a number"), ("cfl_limit", "a number or null")):
+        if not _is(meta[key], kind):
+            raise ValueError(f"{path}: its meta's {key} must be {kind}, got {meta[key]!r}")
+    try:
+        check_int("chunk", meta["chunk"], 1)
+        check_int("step", meta["step"], 0)
+        if meta["checkpoint_every"] is not None:
+            check_int("checkpoint_every", meta["checkpoint_every"], 1)
+        sv = meta["saveat"]
+        if not isinstance(sv, dict) or "every" not in sv or not isinstance(sv.get("fields"), list):
+            raise ValueError(f"saveat must be a JSON object with every and fields, got {sv!r}")
+        saveat = SaveAt(every=sv["every"], fields=tuple(sv["fields"]))
+        if saveat.every is not None and meta["chunk"] % saveat.every:
+            raise ValueError(
+                f"chunk must be a multiple of saveat.every, got chunk={meta['chunk']}, every={saveat.every}"
+            )
+        model, dt_arr, _, saveat = prepare(
+            scene,
+            interp,
+            dt=meta["dt"],
+            steps=meta["steps"],
+            transfer=TRANSFERS[transfer](),
+            artificial_cells=meta["artificial_cells"],
+            saveat=saveat,
+            cfl_limit=meta["cfl_limit"],
+            ordering=meta["ordering"],
+            viscosity=_viscosity_from(meta.get("viscosity")),
+        )
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{path}: its meta does not describe a run: {e}") from None
+    return scene, model, dt_arr, saveat
+
+
+def _viscosity_from(saved) -> ArtificialViscosity | None:
+    """The run's artificial viscosity from its meta's ``viscosity`` (``[c_quad, c_lin]`` or null)."""
+    if saved is None:
+        return None
+    if not isinstance(saved, list) or len(saved) != 2:
+        raise ValueError(f"viscosity must be [c_quad, c_lin] or null, got {saved!r}")
+    return ArtificialViscosity(c_quad=float(saved[0]), c_lin=float(saved[1]))
+
+
+def _check_array(path: pathlib.Path, key: str, arrays: dict, shape: tuple, dtype) -> np.ndarray:
+    """``arrays[key]``, once it is there with ``shape`` and ``dtype``."""
+    if key not in arrays:
+        raise ValueError(
+            f"{path}: the array {key} is missing (the saved run's settings need it, shape {shape})"
+        )
+    a = arrays[key]
+    if a.shape != shape:
+        raise ValueError(
+            f"{path}: {key} has shape {a.shape}, expected {shape} for the run its meta describes"
+        )
+    if a.dtype != dtype:
+        hint = ""
+        if a.dtype == np.float64 and np.dtype(dtype) == np.float32:
+            hint = " (the run was saved in float64: call jax.config.update('jax_enable_x64', True) first)"
+        raise ValueError(f"{path}: {key} has dtype {a.dtype}, expected {np.dtype(dtype)}{hint}")
+    return a
+
+
+def _load(path: pathlib.Path):
+    meta, arrays = _read(path)
+    scene, model, dt_arr, saveat = _settings(path, meta)
     fresh, body = _start(model)
+    described = f"scene {meta['scene']} with the saved params"
+    X = _check_array(path, "body.X", arrays, tuple(body.X.shape), body.X.dtype)
+    fresh_X = np.asarray(body.X)
+    tol = 64 * np.finfo(fresh_X.dtype).eps * max(1.0, float(np.max(np.abs(fresh_X), initial=0.0)))
+    if not np.all(np.abs(X - fresh_X) <= tol):
+        worst = int(np.argmax(np.max(np.abs(X - fresh_X), axis=1)))
+        raise ValueError(
+            f"{path}: body.X does not match the reference positions of {described} (particle {worst}: "
+            f"saved {X[worst].tolist()}, the scene gives {fresh_X[worst].tolist()}); the meta names "
+            f"another scene or other parameters than the arrays hold"
+        )
+    boundary = _check_array(path, "body.boundary", arrays, tuple(body.boundary.shape), body.boundary.dtype)
+    if not np.array_equal(boundary, np.asarray(body.boundary)):
+        raise ValueError(
+            f"{path}: body.boundary does not match the boundary particles of {described}; the meta "
+            f"names another scene or other parameters than the arrays hold"
+        )
     fields = {}
     for name in STATE_NAMES:
         key = f"state.{name}"
         template = getattr(fresh, name)
-        if (key in arrays) != (template is not None):
-            raise ValueError(f"{path}: state.{name} does not match the run's settings")
-        fields[name] = None if template is None else jnp.asarray(arrays[key], dtype=template.dtype)
+        if template is None:
+            if key in arrays:
+                raise ValueError(
+                    f"{path}: it holds {key}, which a run with its meta's settings does not have "
+                    f"(interpolator {meta['interpolator']['name']}, transfer {meta['transfer']})"
+                )
+            fields[name] = None
+        else:
+            a = _check_array(path, key, arrays, tuple(template.shape), template.dtype)
+            fields[name] = jnp.asarray(a, dtype=template.dtype)
     state = State(**fields)
+    if int(state.step) != meta["step"]:
+        raise ValueError(f"{path}: state.step is {int(state.step)} but its meta says step {meta['step']}")
+    if "status" in meta and meta["status"] != int(state.status):
+        raise ValueError(
+            f"{path}: state.status is {int(state.status)} but its meta says status {meta['status']!r}"
+        )
     history = ts = None
-    if saveat.every is not None:
-        history = {
-            k[len("history.") :]: list(arrays[k])
-            for k in arrays
-            if k.startswith("history.") and k != "history.ts"
-        }
-        ts = list(arrays["history.ts"])
+    held = sorted(k for k in arrays if k.startswith("history."))
+    if saveat.every is None:
+        if held:
+            raise ValueError(
+                f"{path}: it holds {held[0]}, but its meta saves no history (saveat.every is null)"
+            )
+    else:
+        n_saved = meta["step"] // saveat.every + 1  # steps 0, every, 2 every, ... up to step
+        ts = list(_check_array(path, "history.ts", arrays, (n_saved,), np.dtype(np.float64)))
+        names = [f for f in saveat.fields if getattr(fresh, f) is not None]
+        extra = [k for k in held if k != "history.ts" and k[len("history.") :] not in names]
+        if extra:
+            raise ValueError(f"{path}: it holds {extra[0]}, which is not among the saved fields {names}")
+        history = {}
+        for f in names:
+            template = getattr(fresh, f)
+            a = _check_array(path, f"history.{f}", arrays, (n_saved, *template.shape), template.dtype)
+            history[f] = list(a)
     rec = _Recorder(
         {k: v for k, v in meta.items() if k not in ("step", "complete", "status", "failure", "saved_at")},
         body,
@@ -437,26 +924,34 @@ def resume(
     out: str | os.PathLike | None = None,
     progress: bool | None = None,
     throw: bool = True,
+    overwrite: bool = False,
 ) -> Solution:
     """Continue a run saved by ``run`` to its target step count, checkpointing as it was set up to.
 
     A resumed run equals the uninterrupted one bit for bit: the same chunk boundaries, the same
     compiled chunk, the state read back exactly. A run that had broken down is not continued: its
-    failure is raised again (or returned with ``throw=False``).
+    failure is raised again (or returned with ``throw=False``). The file is checked first, as by
+    ``load``.
 
     Args:
         path: the saved run.
         out: where to keep writing (default: ``path`` itself).
         progress: as for ``run``.
         throw: as for ``run``.
+        overwrite: replace ``out`` if it is another file that exists (``path`` itself is always
+            rewritten).
 
     Returns:
         The ``Solution`` of the whole run.
 
     Raises:
+        FileNotFoundError: no file at ``path``.
+        ValueError: ``path`` is not a saved run this jaxmpm can continue (as for ``load``), or ``out``
+            cannot be written (as for ``run``'s ``out``).
         SimulationError: the run broke down (now or before it was saved).
+        Interrupted: Ctrl-C (after saving the last finished chunk to ``out``).
     """
-    return resume_timed(path, out=out, progress=progress, throw=throw)[0]
+    return resume_timed(path, out=out, progress=progress, throw=throw, overwrite=overwrite)[0]
 
 
 def resume_timed(
@@ -465,6 +960,7 @@ def resume_timed(
     out: str | os.PathLike | None = None,
     progress: bool | None = None,
     throw: bool = True,
+    overwrite: bool = False,
 ) -> tuple[Solution, float, float, dict]:
     """``resume``, timed.
 
@@ -473,16 +969,25 @@ def resume_timed(
         out: as for ``resume``.
         progress: as for ``resume``.
         throw: as for ``resume``.
+        overwrite: as for ``resume``.
 
     Returns:
         ``(solution, compile_s, wall_s, meta)``: as ``run_timed``, and the saved run's ``meta``.
 
     Raises:
+        FileNotFoundError: no file at ``path``.
+        ValueError: as for ``resume``.
         SimulationError: the run broke down (now or before it was saved).
+        Interrupted: Ctrl-C (after saving the last finished chunk to ``out``).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a file path (a str or os.PathLike), got {path!r}")
+    if not isinstance(overwrite, bool):
+        raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
     path = pathlib.Path(path)
+    _check_file(path)
+    out = _check_out(path if out is None else out, overwrite=overwrite, own=path)
     sol, meta, (model, dt_arr, saveat, state, rec) = _load(path)
-    out = path if out is None else pathlib.Path(out)
     return *_drive(
         model,
         dt_arr,

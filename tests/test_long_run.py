@@ -210,3 +210,207 @@ def test_cli_breakdown_says_where_it_saved(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "F <= 0" in err[0] and f"saved in {path}" in err[0]
     assert long_run.load(path)[1]["failure"]["quantities"]
+
+
+# --- Ctrl-C: stop at once, save the last finished chunk, resume bit for bit
+
+
+def interrupt_at(monkeypatch, k):
+    """Raise ``KeyboardInterrupt`` in the ``k``-th wait for a chunk, once that chunk is computed (its
+    result is discarded, as a Ctrl-C's would be)."""
+    real = long_run.wait
+    calls = {"n": 0}
+
+    def wait(tree):
+        calls["n"] += 1
+        result = real(tree)
+        if calls["n"] == k:
+            raise KeyboardInterrupt
+        return result
+
+    monkeypatch.setattr(long_run, "wait", wait)
+    return calls
+
+
+def count_writes(monkeypatch):
+    real = long_run._write_npz
+    steps = []
+
+    def write(path, arrays):
+        steps.append(int(arrays["state.step"]))
+        real(path, arrays)
+
+    monkeypatch.setattr(long_run, "_write_npz", write)
+    return steps
+
+
+def test_interrupt_saves_the_last_chunk_and_resumes_bit_for_bit(tmp_path, monkeypatch):
+    saveat = jm.SaveAt(every=5, fields=("x", "F"))
+    full = long_run.run(SCENE, jm.MPQ(), transfer=jm.APIC(), saveat=saveat, **KW)
+    path = tmp_path / "run.npz"
+    bars = []
+    real_bar = long_run._progress_bar
+
+    def bar(*args):
+        b = real_bar(*args)
+        bars.append(b)
+        real_close = b.close
+        b.close = lambda: (bars.append("closed"), real_close())
+        return b
+
+    monkeypatch.setattr(long_run, "_progress_bar", bar)
+    interrupt_at(monkeypatch, 4)  # chunks 1-3 finish (step 30); the 4th is discarded
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.run(SCENE, jm.MPQ(), transfer=jm.APIC(), saveat=saveat, out=path, **KW)
+    e = info.value
+    assert isinstance(e, KeyboardInterrupt)
+    assert e.step == 30 and e.saved_in == path and int(e.solution.state.step) == 30
+    assert str(e) == f"interrupted at step 30 of 95; saved in {path} (continue with `jaxmpm resume {path}`)"
+    assert e.solution.history["x"].shape[0] == 7  # steps 0, 5, ..., 30
+    np.testing.assert_array_equal(np.asarray(e.solution.history["F"]), np.asarray(full.history["F"][:7]))
+    assert bars[-1] == "closed"
+    monkeypatch.undo()
+    sol, meta = long_run.load(path)
+    assert meta["step"] == 30 and not meta["complete"]
+    assert_states_identical(sol.state, e.solution.state)
+    resumed = long_run.resume(path, progress=False)
+    assert_states_identical(resumed.state, full.state)
+    for name in ("x", "F"):
+        np.testing.assert_array_equal(np.asarray(resumed.history[name]), np.asarray(full.history[name]))
+    np.testing.assert_array_equal(np.asarray(resumed.ts), np.asarray(full.ts))
+    assert long_run.load(path)[1]["complete"]
+
+
+def test_interrupt_right_after_a_checkpoint_saves_once(tmp_path, monkeypatch):
+    path = tmp_path / "run.npz"
+    writes = count_writes(monkeypatch)
+    interrupt_at(monkeypatch, 4)
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.run(SCENE, jm.MPQ(), out=path, checkpoint_every=3, **KW)
+    assert info.value.step == 30 and writes == [30]  # the checkpoint of step 30 is the file already
+    monkeypatch.undo()
+    writes = count_writes(monkeypatch)
+    interrupt_at(monkeypatch, 2)  # resumed from 30: chunk to 40 finishes, the next is discarded
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.resume(path, progress=False)
+    assert info.value.step == 40 and writes == [40] and long_run.load(path)[1]["step"] == 40
+
+
+def test_interrupt_without_out(monkeypatch):
+    interrupt_at(monkeypatch, 2)
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.run(SCENE, jm.SPQ(), **KW)
+    e = info.value
+    assert str(e) == "interrupted at step 10 of 95" and e.saved_in is None and e.step == 10
+    assert int(e.solution.state.step) == 10
+
+
+def test_cli_resume_interrupted_exits_130_and_continues(tmp_path, monkeypatch, capsys):
+    from jaxmpm.cli import main
+
+    full = long_run.run(SCENE, jm.MPQ(), **KW)
+    path = tmp_path / "run.npz"
+    interrupt_at(monkeypatch, 2)
+    with pytest.raises(long_run.Interrupted):
+        long_run.run(SCENE, jm.MPQ(), out=path, **KW)
+    interrupt_at(monkeypatch, 2)  # from step 10: the chunk to 20 finishes, the next is discarded
+    assert main(["resume", str(path), "--no-progress"]) == 130
+    captured = capsys.readouterr()
+    assert captured.err.strip().splitlines() == [
+        f"jaxmpm: interrupted at step 20 of 95; saved in {path} (continue with `jaxmpm resume {path}`)"
+    ]
+    assert "Traceback" not in captured.out + captured.err
+    monkeypatch.undo()
+    resumed = long_run.resume(path, progress=False)
+    assert_states_identical(resumed.state, full.state)
+
+
+def can_signal() -> bool:
+    import signal
+    import threading
+
+    return (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
+
+
+needs_sigint = pytest.mark.skipif(not can_signal(), reason="needs Python's SIGINT handler in the main thread")
+
+
+@needs_sigint
+def test_a_real_ctrl_c_stops_the_run_at_once(tmp_path, monkeypatch):
+    import os
+    import signal
+    import threading
+    import time
+
+    path = tmp_path / "run.npz"
+    real = long_run.wait
+    calls = {"n": 0, "sent": None}
+
+    def wait(tree):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            calls["sent"] = time.perf_counter() + 0.05
+            threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
+            real(tree)
+            time.sleep(5)  # the signal arrives while the chunk runs or, at the latest, here
+        return real(tree)
+
+    monkeypatch.setattr(long_run, "wait", wait)
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.run(SCENE, jm.MPQ(), out=path, **KW)
+    assert time.perf_counter() - calls["sent"] < 1.0
+    assert info.value.step == 20 and long_run.load(path)[1]["step"] == 20
+
+
+@needs_sigint
+def test_waiting_for_a_chunk_sees_ctrl_c_while_it_runs():
+    import os
+    import signal
+    import threading
+    import time
+
+    import jax
+    import jax.numpy as jnp
+
+    @jax.jit
+    def slow(x):
+        return jax.lax.fori_loop(0, 300, lambda i, c: jnp.sin(c) * 0.999 + 1e-3, x)
+
+    x = jnp.ones(100_000)
+    slow(x).block_until_ready()  # compiled
+    t0 = time.perf_counter()
+    slow(x).block_until_ready()
+    if time.perf_counter() - t0 < 0.3:
+        pytest.skip("the computation is too quick here to interrupt it while it runs")
+    y = slow(x)
+    if y.is_ready():
+        pytest.skip("this backend ran the computation before returning (no asynchronous dispatch)")
+    threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
+    sent = time.perf_counter() + 0.05
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            try:
+                long_run.wait(y)
+            finally:
+                seen, running = time.perf_counter(), not y.is_ready()
+            time.sleep(5)  # the signal came after the computation: fail below, not in another test
+    finally:
+        y.block_until_ready()
+    assert running, "the wait saw Ctrl-C only once the computation had finished"
+    assert seen - sent < 0.25
+
+
+@needs_sigint
+def test_ctrl_c_is_held_back_while_a_chunk_is_recorded():
+    import os
+    import signal
+    import time
+
+    with long_run._DeferInterrupt() as held:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+    assert held.pending
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

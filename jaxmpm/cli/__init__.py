@@ -6,6 +6,7 @@ JSON keys of ``--json``, exit statuses (2: bad input; 3: a run broke down) and t
 kept stable (extended, never renamed).
 """
 
+import os
 import sys
 
 import jax
@@ -40,15 +41,43 @@ def main(argv: list[str] | None = None) -> int:
 
     Returns:
         The exit status: 0; 2 for bad input (one line on stderr naming it); 3 for a run that broke
-        down (one line on stderr naming the step, the particle and the quantity).
+        down (one line on stderr naming the step, the particle and the quantity); 130 for Ctrl-C
+        (one line: the step reached and, with ``--out``, the file that holds it); 141 when stdout
+        is closed by its reader (``jaxmpm ... | head``), silently.
     """
     jax.config.update("jax_enable_x64", True)
     try:
         args = parser().parse_args(argv)
         return args.handler(args)
     except UsageError as e:
-        print(f"jaxmpm: error: {e}", file=sys.stderr)
+        print(f"jaxmpm: error: {_one_line(e)}", file=sys.stderr)
         return 2
     except Breakdown as e:
         print(e, file=sys.stderr)
         return 3
+    except KeyboardInterrupt as e:
+        print(f"jaxmpm: {_one_line(e) or 'interrupted'}", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # The reader went away: send what is still buffered nowhere, so that exiting does not fail again.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
+
+
+def console() -> None:
+    """The ``jaxmpm`` console script: ``main``, then exit with its status.
+
+    After Ctrl-C the process exits at once (``os._exit``), without waiting for a compiled chunk that
+    was abandoned mid-run to finish computing; everything the run saved is already on disk.
+    """
+    code = main()
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split())

@@ -1,7 +1,5 @@
 """``python -m jaxmpm.cli``: the ``jaxmpm`` command."""
 
-import sys
+from . import console
 
-from . import main
-
-sys.exit(main())
+console()

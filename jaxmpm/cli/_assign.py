@@ -12,25 +12,46 @@ import jaxmpm as jm
 from ._common import UsageError
 
 
-def split(items: Iterable[str], expected: str) -> Iterator[tuple[str, str]]:
+def split(items: Iterable[str], expected: str, where: str = "") -> Iterator[tuple[str, str]]:
     """``name=value`` items as ``(name, value)`` pairs, split at the first ``=``, one at a time (so
     that the first bad item is the one reported, whatever is wrong with it).
+
+    A name given twice is refused, not taken last-wins, for every command that reads assignments.
 
     Args:
         items: the items, e.g. ``["beta=400", "cells=3"]``.
         expected: the form the items take, for the error (e.g. ``"scene parameters are name=value"``).
+        where: what the error starts with, e.g. ``"--start: "`` (nothing for scene parameters).
 
     Yields:
         ``(name, value)``, in order, ``value`` unparsed.
 
     Raises:
-        UsageError: an item without ``=`` or without a name: ``"{expected}, got {item!r}"``.
+        UsageError: an item without ``=`` or without a name: ``"{expected}, got {item!r}"``; a name
+            given twice: ``"{where}{name} is given twice: {first!r} and {second!r}"``.
     """
+    seen: dict[str, str] = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise UsageError(f"{expected}, got {item!r}")
+        if name in seen:
+            raise UsageError(f"{where}{name} is given twice: {seen[name]!r} and {item!r}")
+        seen[name] = item
         yield name, value
+
+
+def names(items: Iterable[str]) -> list[str]:
+    """The names of ``name=value`` items, for commands that check one option's names against another's
+    (an item without ``=`` is left to ``split`` to report).
+
+    Args:
+        items: the items, e.g. ``["beta=400", "cells=3"]``.
+
+    Returns:
+        The names, in order.
+    """
+    return [item.partition("=")[0] for item in items if "=" in item]
 
 
 def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
@@ -95,15 +116,18 @@ def numbers(text: str, option: str) -> dict[str, float]:
         ``{name: value}``.
 
     Raises:
-        UsageError: an item that is not ``NAME=VALUE`` with a number for ``VALUE``.
+        UsageError: an item that is not ``NAME=VALUE`` with a finite number for ``VALUE``, or a name
+            given twice.
     """
     expected = f"{option} takes NAME=VALUE[,NAME=VALUE...]"
     out = {}
-    for key, raw in split(comma_list(text), expected):
+    for key, raw in split(comma_list(text, option), expected, f"{option}: "):
         try:
             out[key] = float(raw)
         except ValueError:
             raise UsageError(f"{expected}, got {key + '=' + raw!r}") from None
+        if not math.isfinite(out[key]):
+            raise UsageError(f"{option}: {key} must be finite, got {raw}")
     return out
 
 
@@ -118,12 +142,12 @@ def ranges(items: Iterable[str], allowed: Sequence[str]) -> dict[str, tuple[floa
         The ranges, finite with ``low <= high``.
 
     Raises:
-        UsageError: an item not of the form ``NAME=LOW:HIGH``, a name not in ``allowed``, bounds that
-            are not numbers, not finite, or in the wrong order.
+        UsageError: an item not of the form ``NAME=LOW:HIGH``, a name not in ``allowed`` or given
+            twice, bounds that are not numbers, not finite, or in the wrong order.
     """
     expected = "--vary takes NAME=LOW:HIGH"
     out = {}
-    for key, raw in split(items, expected):
+    for key, raw in split(items, expected, "--vary: "):
         item = f"{key}={raw}"
         lo, sep, hi = raw.partition(":")
         if not sep:
@@ -141,16 +165,24 @@ def ranges(items: Iterable[str], allowed: Sequence[str]) -> dict[str, tuple[floa
     return out
 
 
-def comma_list(text: str) -> list[str]:
+def comma_list(text: str, option: str | None = None) -> list[str]:
     """The non-empty items of a comma-separated list, as written (``--grad``, ``--fit``, ``--start``).
 
     Args:
         text: e.g. ``"beta,h"``.
+        option: the option, for the error (``"--fit"``).
 
     Returns:
         The items, in order.
+
+    Raises:
+        UsageError: an item given twice: ``"{option}: {item} is given twice"``.
     """
-    return [item for item in text.split(",") if item]
+    items = [item for item in text.split(",") if item]
+    for i, item in enumerate(items):
+        if item in items[:i]:
+            raise UsageError(f"{option + ': ' if option else ''}{item} is given twice")
+    return items
 
 
 def choices(text: str, option: str, allowed: Sequence[str]) -> list[str]:

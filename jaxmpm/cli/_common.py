@@ -3,7 +3,10 @@ input: 2, a run that broke down: 3), and JSON output."""
 
 import argparse
 import json
+import os
+import pathlib
 import re
+import tempfile
 
 import numpy as np
 
@@ -99,6 +102,32 @@ def _det(F) -> float:
         - b * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
         + c * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
     )
+
+
+def writable_folder(folder, option: str) -> pathlib.Path:
+    """A folder to write into, made if missing, checked before any work is done.
+
+    Args:
+        folder: the folder given.
+        option: the option that gave it (``"--out"``, ``"--vtk"``), for the message.
+
+    Returns:
+        The folder, which exists and takes a new file.
+
+    Raises:
+        UsageError: ``folder`` is a file, cannot be made, or cannot be written.
+    """
+    path = pathlib.Path(folder)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{option} {folder} is a file, not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".jaxmpm-write-test-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise UsageError(f"{option} {folder}: cannot write there ({e.strerror or e})") from None
+    return path
 
 
 def print_json(obj) -> None:

@@ -1,12 +1,15 @@
 """``jaxmpm calibrate``: fit material constants to a measured free-surface trajectory."""
 
 import csv
+import io
+import math
 import sys
 
 import numpy as np
 
 import jaxmpm as jm
 from jaxmpm._checks import check_positive
+from jaxmpm._simulate import prepare
 
 from . import _assign
 from ._common import UsageError, print_json
@@ -36,34 +39,131 @@ def add_parser(subparsers) -> None:
 
 
 def read_trajectory(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """The measured trajectory: a CSV file with a header and the columns ``t`` and ``x_free``.
+    """The measured trajectory: a CSV file (UTF-8 text) with a header and the columns ``t`` and
+    ``x_free``; other columns are ignored, blank lines skipped.
 
     Args:
         path: the file.
 
     Returns:
-        ``(t, x_free)``, at least two rows, finite, ``t`` from ``>= 0`` increasing.
+        ``(t, x_free)``, at least two rows, every value finite, ``t`` from ``>= 0`` increasing.
 
     Raises:
-        UsageError: the file cannot be read, or its columns are missing or wrong.
+        UsageError: the file cannot be read or is not CSV text; it is empty or has no ``t,x_free``
+            header; a cell is missing, not a number or not finite; or ``t`` is negative or does not
+            increase. The message names the line (the header is line 1) and the column.
     """
     try:
-        with open(path, newline="") as f:
-            rows = list(csv.DictReader(f))
+        with open(path, "rb") as f:
+            raw = f.read()
     except OSError as e:
-        raise UsageError(f"--data: cannot read {path}: {e.strerror}") from None
-    if not rows or not {"t", "x_free"} <= set(rows[0]):
-        raise UsageError(f"--data: {path} needs a header with the columns t,x_free")
+        raise UsageError(f"--data: cannot read {path}: {e.strerror or e}") from None
+
+    def not_text(why) -> UsageError:
+        return UsageError(
+            f"--data {path} is not a CSV text file ({why}); it needs a header t,x_free and rows of numbers"
+        )
+
+    if b"\x00" in raw:
+        raise not_text("it holds NUL bytes: a binary file")
     try:
-        t = np.array([float(r["t"]) for r in rows])
-        x = np.array([float(r["x_free"]) for r in rows])
-    except (TypeError, ValueError):
-        raise UsageError(f"--data: {path} has a value in t or x_free that is not a number") from None
-    if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(x)):
-        raise UsageError("--data: need at least 2 rows of finite t,x_free")
-    if t[0] < 0 or np.any(np.diff(t) <= 0):
-        raise UsageError("--data: t must start at >= 0 and increase")
-    return t, x
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[: e.start].count(b"\n") + 1
+        raise not_text(f"line {line}, byte {e.start}, is not UTF-8 text") from None
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        header = reader.fieldnames
+        rows = [(reader.line_num, row) for row in reader]
+    except csv.Error as e:
+        raise not_text(e) from None
+    if header is None:
+        raise UsageError(f"--data: {path} is empty; it needs a header with the columns t,x_free and 2 rows")
+    if not {"t", "x_free"} <= {str(h).strip() for h in header}:
+        shown = ",".join(str(h) for h in header)
+        raise UsageError(
+            f"--data: {path} needs a header with the columns t,x_free; its header is {shown[:80]!r}"
+        )
+    columns = {str(h).strip(): h for h in header}
+    t, x = [], []
+    for line, row in rows:
+        values = []
+        for name in ("t", "x_free"):
+            cell = row.get(columns[name])
+            if cell is None or not cell.strip():
+                raise UsageError(f"--data: {path}, line {line}: no value in column {name}")
+            try:
+                v = float(cell)
+            except ValueError:
+                raise UsageError(
+                    f"--data: {path}, line {line}: {name} is not a number, got {cell.strip()[:40]!r}"
+                ) from None
+            if not math.isfinite(v):
+                raise UsageError(
+                    f"--data: {path}, line {line}: {name} is {cell.strip()[:40]}; "
+                    "non-finite values are not allowed (remove the row)"
+                )
+            values.append(v)
+        if t and not values[0] > t[-1]:
+            raise UsageError(
+                f"--data: {path}, line {line}: t must increase, got t={values[0]:.9g} after t={t[-1]:.9g}"
+            )
+        if not t and values[0] < 0:
+            raise UsageError(f"--data: {path}, line {line}: t must start at >= 0, got t={values[0]:.9g}")
+        t.append(values[0])
+        x.append(values[1])
+    if len(t) < 2:
+        raise UsageError(f"--data: {path} has {len(t)} row(s) of t,x_free; need at least 2")
+    return np.array(t), np.array(x)
+
+
+def fit_names(scene: jm.AbstractScene, text: str) -> list[str]:
+    """The names of ``--fit``, checked: material constants of the scene, each once.
+
+    Args:
+        scene: the scene.
+        text: the comma-separated names, e.g. ``"gamma,P0"``.
+
+    Returns:
+        The names, in order.
+
+    Raises:
+        UsageError: no name, a name given twice, or a name that cannot be fitted (``h`` and ``dt``
+            are not material constants; structural and unknown names are not parameters), with
+            the names that can.
+    """
+    names = _assign.comma_list(text, "--fit")
+    allowed = jm.calibrate.fittable(scene)
+    if not names:
+        raise UsageError(f"--fit: name at least one parameter; fittable: {', '.join(allowed)}")
+    for n in names:
+        if n in allowed:
+            continue
+        if n in jm.calibrate.NOT_FITTED:
+            why = f"{n} is {jm.calibrate.NOT_FITTED[n]}, not a material constant"
+        elif n in type(scene).parameters():
+            why = f"{n} is structural (an integer), not a material constant"
+        else:
+            why = f"unknown parameter {n!r}"
+        raise UsageError(f"--fit: {why}; fittable: {', '.join(allowed)}")
+    return names
+
+
+_MOST_STEPS = 2**31 - 1  # the bound of a step counter
+
+
+def _check_model_run(scene, interp, path: str, t: np.ndarray, dt: float) -> None:
+    """Refuse, naming ``--data``, a trajectory whose model run (every step saved) has too many steps
+    or does not fit in memory, before the fit is traced."""
+    steps = math.ceil(float(t[-1]) / dt - 1e-9)
+    what = f"--data: {path}: t reaches {float(t[-1]):.6g}, {steps:.3g} model steps of dt = {dt:.3g}"
+    if steps > _MOST_STEPS:
+        raise UsageError(f"{what}, more than {_MOST_STEPS}; give times in seconds, or a larger --dt")
+    fields = ("x", "F", "corners") if interp.tracks_corners else ("x", "F")
+    try:  # prepare checks the run's memory, the saved history included
+        prepare(scene, interp, dt=dt, steps=steps, saveat=jm.SaveAt(every=1, fields=fields))
+    except ValueError as e:
+        raise UsageError(f"{what}: {e}") from None
 
 
 def command(args) -> int:
@@ -83,21 +183,35 @@ def command(args) -> int:
         raise UsageError(
             f"calibrate fits a free-surface trajectory: the scene must be gas-slab, got {args.scene}"
         )
-    t, x = read_trajectory(args.data)
-    names = _assign.comma_list(args.fit)
+    names = fit_names(scene, args.fit)
     start = _assign.numbers(args.start, "--start") if args.start else {}
+    given = _assign.names(args.params)
+    for k in start:
+        if k not in names:
+            raise UsageError(f"--start: {k} is not fitted (fitted: {', '.join(names)})")
+        if k in given:
+            raise UsageError(
+                f"--start: {k} is also given as a scene parameter ({k}=...), which is its start: give it once"
+            )
+    if args.iterations < 1:
+        raise UsageError(f"--iterations must be an integer >= 1, got {args.iterations}")
     try:
-        jm.sensitivity.check_names(scene, names)
-        if args.dt is not None:
-            check_positive("dt", args.dt)
         start_scene = type(scene)(**{**scene.parameter_values(), **start})
     except ValueError as e:
-        raise UsageError(str(e)) from None
+        raise UsageError(f"--start: {e}") from None
+    if args.dt is not None:
+        try:
+            check_positive("dt", args.dt)
+        except ValueError as e:
+            raise UsageError(str(e)) from None
+    t, x = read_trajectory(args.data)
     dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / float(start_scene.wave_speed)
+    interp = jm.INTERPOLATORS[args.interpolator]()
+    _check_model_run(scene, interp, args.data, t, dt)
     try:
         fit = jm.calibrate.calibrate(
             scene,
-            jm.INTERPOLATORS[args.interpolator](),
+            interp,
             t,
             x,
             fit=names,

@@ -1,14 +1,21 @@
 """``jaxmpm ensemble``: a batch of parameter sets in one compiled, sharded call."""
 
 import itertools
+import math
+import sys
 import time
 
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm import _memory
+from jaxmpm._checks import check_int, check_positive
+from jaxmpm._simulate import prepare
 
 from . import _assign
 from ._common import UsageError, print_json
+
+_MOST_STEPS = 2**31 - 1  # the bound of a step counter
 
 
 def add_parser(subparsers) -> None:
@@ -17,12 +24,21 @@ def add_parser(subparsers) -> None:
     Args:
         subparsers: the ``jaxmpm`` parser's subparsers.
     """
-    p = subparsers.add_parser("ensemble", help="run a batch of parameter sets in one compiled, sharded call")
+    p = subparsers.add_parser(
+        "ensemble",
+        help="run a batch of parameter sets in one compiled, sharded call",
+        description=(
+            "Run --members parameter sets drawn uniformly in the --vary ranges in one compiled, sharded "
+            "call. Exit status: 0 when at least one member finished (members that broke down are listed); "
+            "3 when every member broke down (one line on stderr; the table or JSON is still printed); "
+            "2 for bad input."
+        ),
+    )
     p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
     p.add_argument("params", nargs="*", metavar="name=value", help="fixed scene parameters")
     p.add_argument("--vary", action="append", required=True, metavar="NAME=LOW:HIGH", help="repeatable")
     p.add_argument("--members", type=int, required=True, help="members (uniform random in the ranges)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the sample (0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the sample, an integer >= 0 (0)")
     p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
     p.add_argument("--transfer", default="flip", choices=list(jm.TRANSFERS))
     p.add_argument("--artificial-cells", type=int, default=0, metavar="N")
@@ -43,7 +59,9 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status, 0 (members that broke down are reported, not raised).
+        The exit status: 0 when at least one member ran to the end (members that broke down are
+        reported, not raised); 3 when every member broke down (the report is printed all the same,
+        and one line on stderr says so).
 
     Raises:
         UsageError: bad input.
@@ -51,16 +69,28 @@ def command(args) -> int:
     scene = _assign.scene(args.scene, args.params)
     varying = [n for n in jm.sensitivity.continuous_parameters(scene) if n != "dt"]
     ranges = _assign.ranges(args.vary, varying)
+    fixed = _assign.names(args.params)
+    for k in ranges:
+        if k in fixed:
+            raise UsageError(f"--vary: {k} is also given as a fixed scene parameter ({k}=...): give it once")
     if args.members < 1:
         raise UsageError(f"--members must be an integer >= 1, got {args.members}")
-    rng = np.random.default_rng(args.seed)
-    vary = {k: rng.uniform(lo, hi, args.members) for k, (lo, hi) in ranges.items()}
+    if args.seed < 0:
+        raise UsageError(f"--seed must be an integer >= 0, got {args.seed}")
     settings = dict(transfer=jm.TRANSFERS[args.transfer](), artificial_cells=args.artificial_cells)
     if args.dt is not None or args.steps is not None:
         if args.dt is None or args.steps is None or args.t_end is not None:
             raise UsageError("give --dt and --steps together, or --t-end (or neither: two wave transits)")
         timing = dict(dt=args.dt, steps=args.steps)
     else:  # the fastest member sets the bound: sound speeds at the ranges' corners
+        try:
+            check_positive("--cfl", args.cfl)
+            if args.t_end is not None:
+                check_positive("--t-end", args.t_end)
+            if args.max_steps is not None:
+                check_int("--max-steps", args.max_steps, 1)
+        except ValueError as e:
+            raise UsageError(str(e)) from None
         speeds = []
         for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in ranges.items()]):
             try:
@@ -68,12 +98,33 @@ def command(args) -> int:
             except ValueError as e:
                 raise UsageError(f"--vary: {e}") from None
         c_min, c_max = min(speeds), max(speeds)
+        if not (math.isfinite(c_max) and c_min > 0):
+            raise UsageError(
+                f"--vary: the sound speed in the ranges must be finite and > 0, "
+                f"got {c_min:.6g} to {c_max:.6g}"
+            )
         t_end = args.t_end if args.t_end is not None else 2.0 * float(scene.length) / c_min
         max_steps = args.max_steps or int(3 * t_end * c_max / (args.cfl * float(scene.h))) + 100
+        if max_steps > _MOST_STEPS:
+            raise UsageError(
+                f"--t-end {t_end:.6g} at --cfl {args.cfl:g} needs about {max_steps:.3g} steps, more than "
+                f"{_MOST_STEPS}; give a shorter --t-end or --max-steps"
+            )
         timing = dict(t_end=t_end, cfl=args.cfl, max_steps=max_steps)
+    interp = jm.INTERPOLATORS[args.interpolator]()
+    try:
+        model, _, steps, saveat = prepare(scene, interp, **timing, **settings)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    try:  # before the sample is drawn: nothing of the size of --members is allocated first
+        _memory.check_run(model, steps, saveat, members=args.members)
+    except ValueError as e:
+        raise UsageError(f"--members {args.members}: {e}") from None
+    rng = np.random.default_rng(args.seed)
+    vary = {k: rng.uniform(lo, hi, args.members) for k, (lo, hi) in ranges.items()}
     t0 = time.perf_counter()
     try:
-        ens = jm.ensemble(scene, jm.INTERPOLATORS[args.interpolator](), vary, **timing, **settings)
+        ens = jm.ensemble(scene, interp, vary, **timing, **settings)
     except ValueError as e:
         raise UsageError(str(e)) from None
     wall = time.perf_counter() - t0
@@ -110,9 +161,10 @@ def command(args) -> int:
         timing={k: float(v) if k != "max_steps" and k != "steps" else int(v) for k, v in timing.items()},
         results=results,
     )
+    status = 0 if out["ok"] else _all_failed(results)
     if args.json:
         print_json(out)
-        return 0
+        return status
     print(
         f"{args.members} members on {ens.devices} device(s): {out['ok']} ok, {out['failed']} failed, "
         f"wall_s={wall:.3f}"
@@ -126,4 +178,22 @@ def command(args) -> int:
             else ""
         )
         print(f"{i:>5} " + " ".join(f"{k}={v:.6g}" for k, v in r["params"].items()) + extra + fail)
-    return 0
+    return status
+
+
+def _all_failed(results: list[dict]) -> int:
+    """Say on stderr, in one line, that every member broke down (the first member's step and quantity);
+    the exit status 3."""
+    first = results[0]
+    where = ", ".join(f"{k}={v:.6g}" for k, v in first["params"].items())
+    what = (
+        f"at step {first['failure']['step']}: {' and '.join(first['failure']['quantities'])}"
+        if "failure" in first
+        else f"with status {first['status']}"
+    )
+    print(
+        f"jaxmpm: every member of the ensemble broke down ({len(results)} of {len(results)}); "
+        f"member 0 ({where}) {what}. Each member's failure is in the report.",
+        file=sys.stderr,
+    )
+    return 3

@@ -1,6 +1,12 @@
-"""``jaxmpm resume``: continue a run saved with ``jaxmpm run --out FILE``."""
+"""``jaxmpm resume``: continue a run saved with ``jaxmpm run --out FILE``.
+
+Exit statuses: 0; 2 for a file that is missing or is not a saved run this jaxmpm can continue (one
+line naming the file and what is wrong); 3 for a run that broke down; 130 for Ctrl-C, after saving
+the last finished chunk to the file (one line saying at which step).
+"""
 
 import pathlib
+import sys
 
 import jaxmpm as jm
 
@@ -29,18 +35,25 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status, 0.
+        The exit status: 0, or 130 after Ctrl-C (the run saved up to its last finished chunk, and one
+        line on stderr saying so).
 
     Raises:
-        UsageError: no such file, or not a saved run.
+        UsageError: no such file, or not a saved run (one line naming the file and what is wrong);
+            or the file cannot be written.
         Breakdown: the run broke down (now, or before it was saved).
     """
     try:
         sol, compile_s, wall_s, meta = jm.long_run.resume_timed(
             args.file, progress=False if args.no_progress else None
         )
+    except jm.long_run.Interrupted as e:
+        print(f"jaxmpm: {e}", file=sys.stderr)
+        return 130
     except (FileNotFoundError, ValueError) as e:
-        raise UsageError(str(e)) from None
+        raise UsageError(_one_line(e)) from None
+    except OSError as e:  # e.g. the disk filled up while saving: the previous save is intact
+        raise UsageError(f"cannot write {args.file}: {e.strerror or e}") from None
     except jm.SimulationError as e:
         dt = jm.long_run.load(args.file)[1]["dt"]  # saved with the failure: the run's fixed step
         raise Breakdown(e.solution, dt=dt, saved_in=pathlib.Path(args.file)) from None
@@ -56,3 +69,9 @@ def command(args) -> int:
         out=str(args.file),
     )
     return report(run, scene, sol, compile_s, wall_s, as_json=args.json)
+
+
+def _one_line(e: Exception) -> str:
+    """The first line of ``e``'s message (messages are one line; this keeps the CLI's promise)."""
+    lines = str(e).strip().splitlines()
+    return lines[0] if lines else type(e).__name__

@@ -3,12 +3,26 @@
 import pathlib
 import time
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm import _memory
+from jaxmpm._simulate import advance, failure_message, finish_to_end, prepare
+from jaxmpm.long_run import wait
 
 from . import _assign
-from ._common import Breakdown, UsageError, floats, print_json, scalar
+from ._common import Breakdown, UsageError, floats, print_json, scalar, writable_folder
+
+CHUNK_S = 0.25
+"""About how long one compiled chunk of a plain ``jaxmpm run`` (no ``--out``) takes: between chunks
+the run stops at a breakdown and answers Ctrl-C, so a broken run stops computing and Ctrl-C is
+answered within about this time. Chunked runs equal one scan bit for bit."""
+
+STEP_NS = 70.0
+"""Nanoseconds per particle-stencil node and per grid node of one step, measured on one CPU core
+(2D and 3D, every interpolator: 67-81 ns); it sizes the chunks."""
 
 
 def add_parser(subparsers) -> None:
@@ -56,9 +70,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--vtk", metavar="DIR", help="write ParaView files (particles, grid, .pvd series) to DIR")
     p.add_argument("--vtk-every", type=int, metavar="K", help="with --vtk: a frame every K steps (steps/10)")
     p.add_argument("--out", metavar="FILE", help="run in chunks and save the run to FILE (.npz)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="with --out or --vtk: replace what is there (else refused)"
+    )
     p.add_argument("--checkpoint-every", type=int, metavar="N", help="with --out: save every N chunks")
     p.add_argument("--chunk", type=int, default=1000, metavar="STEPS", help="with --out: steps per chunk")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar (with --out)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (long runs, --out)")
     p.add_argument(
         "--grad",
         metavar="NAME[,NAME...]",
@@ -113,8 +130,6 @@ def command(args) -> int:
         ordering=args.ordering,
         viscosity=viscosity,
     )
-    if viscosity is not None and args.out is not None:
-        raise UsageError("--viscosity is not saved by --out runs yet; run without --out")
     if args.t_end is not None:
         if args.dt is not None or args.steps is not None:
             raise UsageError(
@@ -129,6 +144,8 @@ def command(args) -> int:
         if args.dt is None or args.steps is None:
             raise UsageError("give --dt and --steps, or --t-end and --max-steps")
         timing = dict(dt=args.dt, steps=args.steps)
+    if args.overwrite and args.out is None and args.vtk is None:
+        raise UsageError("--overwrite goes with --out FILE or --vtk DIR (what it would replace)")
     if args.checkpoint_every is not None and args.out is None:
         raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
     if args.vtk_every is not None and args.vtk is None:
@@ -141,15 +158,11 @@ def command(args) -> int:
             raise UsageError(f"--vtk-every must be an integer >= 1, got {every}")
         fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
         settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
+    if args.vtk is not None:
+        _check_vtk_folder(args.vtk, args.overwrite)
+    progress = False if args.no_progress else None
     try:
-        if args.out is None:
-            try:
-                sol, compile_s, wall_s = jm.simulate_timed(scene, interp, **timing, **settings)
-            except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
-                if args.vtk is not None:
-                    _write_vtk(args.vtk, scene, interp, settings, e.solution)
-                raise Breakdown(e.solution, dt=args.dt) from None
-        else:
+        if args.out is not None:
             try:
                 sol, compile_s, wall_s = jm.long_run.run_timed(
                     scene,
@@ -159,11 +172,21 @@ def command(args) -> int:
                     chunk=args.chunk,
                     out=args.out,
                     checkpoint_every=args.checkpoint_every,
-                    progress=False if args.no_progress else None,
-                    **{k: v for k, v in settings.items() if k != "viscosity"},
+                    progress=progress,
+                    overwrite=args.overwrite,
+                    **settings,
                 )
             except jm.SimulationError as e:
+                _breakdown_json(args, scene, e.solution)
                 raise Breakdown(e.solution, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
+        else:
+            try:
+                sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
+            except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
+                if args.vtk is not None:
+                    _write_vtk(args.vtk, scene, interp, settings, e.solution)
+                _breakdown_json(args, scene, e.solution)
+                raise Breakdown(e.solution, dt=args.dt) from None
     except ValueError as e:
         raise UsageError(str(e)) from None
     grad = grad_s = None
@@ -196,6 +219,94 @@ def command(args) -> int:
     return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
 
 
+def _plain(scene, interp, timing, settings, progress):
+    """A run without ``--out``: one compiled scan when it is short, else compiled chunks of about
+    ``CHUNK_S`` seconds (``jaxmpm.long_run``, nothing saved), so that a breakdown stops it and Ctrl-C
+    is answered between chunks."""
+    keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
+    model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
+    particles, nodes = _memory.sizes(model)
+    step_s = 1e-9 * STEP_NS * (particles * interp.stencil_width**scene.dim + nodes) + 2e-6
+    chunk = max(1, int(CHUNK_S / step_s))
+    saveat = settings.get("saveat")
+    if "t_end" in timing:
+        if saveat is not None or timing["max_steps"] <= chunk:
+            return jm.simulate_timed(scene, interp, **timing, **settings)
+        return _to_end_in_chunks(scene, interp, timing, settings, chunk)
+    if saveat is not None:
+        chunk = max(saveat.every, chunk // saveat.every * saveat.every)
+    if timing["steps"] <= chunk:
+        return jm.simulate_timed(scene, interp, **timing, **settings)
+    return jm.long_run.run_timed(scene, interp, **timing, chunk=chunk, progress=progress, **settings)
+
+
+def _to_end_in_chunks(scene, interp, timing, settings, chunk):
+    """A run to ``--t-end`` in compiled chunks of ``chunk`` steps (the scan of ``simulate``, cut
+    into pieces: bit for bit the same), stopping at ``t_end``, a breakdown or ``--max-steps``."""
+    model, dt, max_steps, _ = prepare(scene, interp, **timing, **settings)
+    limit = jnp.asarray(max_steps, dtype=jnp.int32)
+    t0 = time.perf_counter()
+    state, body = _start(model)
+    compiled = _advance.lower(model, state, dt, limit, chunk).compile()
+    t1 = time.perf_counter()
+    try:
+        while int(state.status) == 0 and float(state.t) < float(dt.t_end) and int(state.step) < max_steps:
+            state = wait(compiled(model, state, dt, limit, chunk))
+    except KeyboardInterrupt:
+        at = f"step {int(state.step)} (t = {float(state.t):.6g})"
+        raise KeyboardInterrupt(f"interrupted at {at} of a run to t = {timing['t_end']:g}") from None
+    sol = jm.Solution(finish_to_end(state, dt), body, None, None)
+    wall = time.perf_counter() - t1
+    if int(sol.state.status):
+        raise jm.SimulationError(failure_message(sol, None), sol)
+    return sol, t1 - t0, wall
+
+
+@eqx.filter_jit
+def _start(model):
+    s = jm.setup(model)
+    return jm.initial_state(model, s), s.body
+
+
+@eqx.filter_jit
+def _advance(model, state, dt, limit, chunk: int):
+    return advance(model, jm.setup(model), state, dt, chunk, jm.SaveAt(), None, limit)[0]
+
+
+def _breakdown_json(args, scene, sol) -> None:
+    """With ``--json``, the report of a run that broke down (its last good state, ``status`` and
+    ``failure``) on stdout, before the one line on stderr."""
+    if args.json:
+        run = dict(
+            scene=args.scene,
+            interpolator=args.interpolator,
+            transfer=args.transfer,
+            artificial_cells=args.artificial_cells,
+            ordering=args.ordering,
+            dt=args.dt,
+            steps=args.steps,
+        )
+        if args.t_end is not None:
+            run.update(
+                t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step)
+            )
+        if args.out is not None:
+            run["out"] = str(args.out)
+        report(run, scene, sol, None, None, as_json=True)
+
+
+def _check_vtk_folder(folder, overwrite: bool) -> None:
+    """``--vtk DIR`` before the run: a folder that can be written, without the frames of another run
+    (unless ``--overwrite``)."""
+    path = writable_folder(folder, "--vtk")
+    old = sorted(p.name for p in path.iterdir() if p.suffix in (".vtu", ".vts", ".vtr", ".pvd"))
+    if old and not overwrite:
+        raise UsageError(
+            f"--vtk {folder} already holds ParaView files ({old[0]}{', ...' if len(old) > 1 else ''}); "
+            "pass --overwrite to replace them, or choose another folder"
+        )
+
+
 def _write_vtk(out_dir, scene, interp, settings, sol):
     keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
     model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
@@ -206,14 +317,15 @@ def report(
     run: dict,
     scene: jm.AbstractScene,
     sol: jm.Solution,
-    compile_s: float,
-    wall_s: float,
+    compile_s: float | None,
+    wall_s: float | None,
     *,
     grad: dict | None = None,
     grad_s: float | None = None,
     as_json: bool = False,
 ) -> int:
-    """Print a finished run: its settings, parameters, particles, errors and diagnostics.
+    """Print a run: its settings, parameters, particles, errors and diagnostics. For a run that broke
+    down, its last good state, with ``status`` and ``failure`` (step, particle, quantities) saying why.
 
     In 1D the particle lists hold numbers; in 2D and 3D vectors and nested ``dim x dim`` lists, the
     particles by initial position, last axis fastest.
@@ -222,8 +334,8 @@ def report(
         run: the run's settings (``scene``, ``interpolator``, ``dt``, ...), printed first.
         scene: the scene that ran.
         sol: its solution.
-        compile_s: compile time (s).
-        wall_s: run time (s).
+        compile_s: compile time (s), or ``None`` for a run that broke down.
+        wall_s: run time (s), or ``None`` for a run that broke down.
         grad: ``d(F_rms_rel)/d(name)`` by name, or ``None``.
         grad_s: the time of the gradient (s), with ``grad``.
         as_json: one JSON object instead of the table.
@@ -256,6 +368,7 @@ def report(
             errors={k: scalar(v) for k, v in err.items()},
             diagnostics={k: (float(v) if np.ndim(v) == 0 else floats(v)) for k, v in diag.items()},
             status=int(st.status),
+            failure=sol.failure(),
             wall_s=wall_s,
             compile_s=compile_s,
         )

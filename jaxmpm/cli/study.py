@@ -4,6 +4,8 @@ import importlib
 
 import jax
 
+from ._common import writable_folder
+
 STUDIES = {
     "talk": "talk",
     "convergence": "convergence",
@@ -47,7 +49,11 @@ def command(args) -> int:
 
     Returns:
         The exit status, 0.
+
+    Raises:
+        UsageError: ``--out`` cannot be written (found before the study starts).
     """
+    writable_folder(args.out, "--out")
     study = importlib.import_module(f"jaxmpm.studies.{STUDIES[args.name]}")
     options = dict(release=jax.clear_caches) if args.name in RELEASING else {}
     study.main(out=args.out, small=args.small, **options)

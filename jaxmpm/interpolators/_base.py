@@ -43,10 +43,14 @@ class AbstractInterpolator(eqx.Module):
         name: the name the interpolator is known by (``INTERPOLATORS``, ``--interpolator``, a saved
             run's metadata).
         tracks_corners: whether the particles' domain corners are part of the state (MPQ).
+        stencil_width: grid nodes per axis that one particle's weights reach (their product over the
+            axes is the stencil; for CPDI and MPQ, two corners per axis of two nodes each); it sizes
+            the memory estimate of a run.
     """
 
     name: eqx.AbstractVar[str]
     tracks_corners: eqx.AbstractClassVar[bool]
+    stencil_width: eqx.AbstractVar[int]
 
     @abc.abstractmethod
     def stencil(

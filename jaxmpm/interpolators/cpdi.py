@@ -24,6 +24,7 @@ class CPDI(AbstractInterpolator):
 
     name: ClassVar[str] = "cpdi"
     tracks_corners: ClassVar[bool] = False
+    stencil_width: ClassVar[int] = 4
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del corners

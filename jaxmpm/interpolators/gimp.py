@@ -36,6 +36,11 @@ class GIMP(AbstractInterpolator):
     max_span: int = eqx.field(static=True, default=1)
     tracks_corners: ClassVar[bool] = False
 
+    @property
+    def stencil_width(self) -> int:
+        """``max_span + 2`` nodes per axis."""
+        return self.max_span + 2
+
     def __check_init__(self):
         if isinstance(self.max_span, bool) or not isinstance(self.max_span, int) or self.max_span < 1:
             raise ValueError(f"max_span must be an integer >= 1, got {self.max_span!r}")

@@ -25,6 +25,7 @@ class MPQ(AbstractInterpolator):
 
     name: ClassVar[str] = "mpq"
     tracks_corners: ClassVar[bool] = True
+    stencil_width: ClassVar[int] = 4
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F

@@ -11,6 +11,7 @@ class SPQ(AbstractInterpolator):
 
     name: ClassVar[str] = "spq"
     tracks_corners: ClassVar[bool] = False
+    stencil_width: ClassVar[int] = 2
 
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F, corners

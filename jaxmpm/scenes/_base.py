@@ -8,7 +8,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_int, check_positive
+from .._checks import check_int, check_positive, check_real
+from .._util import as_float
 from ..grid import Grid
 from ..materials import AbstractMaterial
 from ..particles import Body, seed_box
@@ -68,6 +69,13 @@ class AbstractScene(eqx.Module):
     cells: eqx.AbstractVar[int]
     ppc: eqx.AbstractVar[int]
     pad: eqx.AbstractVar[int]
+
+    def __post_init__(self):
+        # Before the converters (which cannot name the field) and every __check_init__: a value that
+        # is not a number at all is named here ("beta must be a real number, got 'abc'").
+        for f in dataclasses.fields(self):
+            if f.metadata.get("converter") is as_float:
+                check_real(f.name, getattr(self, f.name))
 
     def __check_init__(self):
         check_int("cells", self.cells, 1)

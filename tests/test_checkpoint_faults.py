@@ -1,0 +1,402 @@
+"""Saved runs that are damaged, foreign or inconsistent, and files a run must not overwrite.
+
+Every bad file is refused by ``long_run.load`` and ``long_run.resume`` with a ``ValueError`` of one
+line naming the file (a missing file stays a ``FileNotFoundError``), and by ``jaxmpm resume`` with
+exit status 2 and one ``jaxmpm: error:`` line, never a traceback. A run never replaces a file it was
+not told to, and finds an ``out`` it cannot write before it compiles anything.
+"""
+
+import json
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+from jaxmpm import long_run
+from jaxmpm.cli import main
+
+SCENE = jm.GasExpansion(cells=4, beta=300.0)
+KW = dict(dt=1e-5, steps=20, chunk=10, artificial_cells=1, progress=False)
+SAVEAT = jm.SaveAt(every=5, fields=("x", "F"))
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory) -> pathlib.Path:
+    """A complete saved run (MPQ, APIC, with a history): every bad file below is made from it."""
+    path = tmp_path_factory.mktemp("good") / "good.npz"
+    long_run.run(SCENE, jm.MPQ(), transfer=jm.APIC(), saveat=SAVEAT, out=path, **KW)
+    return path
+
+
+def arrays_of(path) -> dict:
+    with np.load(path) as f:
+        return {k: f[k] for k in f.files}
+
+
+def meta_of(path) -> dict:
+    with np.load(path) as f:
+        return json.loads(str(f["meta"]))
+
+
+def variant(good, tmp_path, *, meta=None, drop=(), **arrays) -> pathlib.Path:
+    """A copy of ``good`` with ``meta`` updated (a key set to ``DROP`` is removed), the arrays ``drop``
+    left out and the arrays ``arrays`` (names with ``__`` for ``.``) replaced."""
+    data = arrays_of(good)
+    m = json.loads(str(data["meta"]))
+    for k, v in (meta or {}).items():
+        if v is DROP:
+            m.pop(k)
+        else:
+            m[k] = v
+    data["meta"] = np.asarray(json.dumps(m))
+    for k in drop:
+        del data[k]
+    data.update({k.replace("__", "."): v for k, v in arrays.items()})
+    path = tmp_path / "bad.npz"
+    np.savez(path, **data)
+    return path
+
+
+DROP = object()
+
+
+def assert_refused(path, capsys, *fragments, error=ValueError):
+    """``load``, ``resume`` and ``jaxmpm resume`` each refuse ``path`` with one line naming it."""
+    before = path.read_bytes() if path.is_file() else None
+    with pytest.raises(error) as info:
+        long_run.load(path)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message, message
+    for fragment in fragments:
+        assert fragment in message, message
+    with pytest.raises(error):
+        long_run.resume(path, progress=False)
+    with pytest.raises(error):
+        long_run.resume_timed(path, progress=False)
+    capsys.readouterr()
+    assert main(["resume", str(path), "--no-progress"]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("jaxmpm: error:"), captured.err
+    assert str(path) in lines[0] and "Traceback" not in captured.err + captured.out
+    if before is not None:
+        assert path.read_bytes() == before  # nothing the user saved is touched
+    return message
+
+
+def test_the_good_file_loads(good):
+    sol, meta = long_run.load(good)
+    assert meta["step"] == 20 and int(sol.state.step) == 20 and sol.history["x"].shape[0] == 5
+
+
+def test_empty_file(tmp_path, capsys):
+    path = tmp_path / "empty.npz"
+    path.write_bytes(b"")
+    assert_refused(path, capsys, "is empty", "not a jaxmpm checkpoint")
+
+
+def test_truncated_file(good, tmp_path, capsys):
+    path = tmp_path / "half.npz"
+    data = good.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    assert_refused(path, capsys, "damaged or truncated")
+
+
+def test_damaged_member(good, tmp_path, capsys):
+    data = bytearray(good.read_bytes())
+    i = data.find(b"state.x.npy")  # the member's local header: spoil the bytes after it
+    data[i + 200 : i + 260] = b"\x00" * 60
+    path = tmp_path / "spoilt.npz"
+    path.write_bytes(bytes(data))
+    assert_refused(path, capsys, "damaged or truncated")
+
+
+def test_text_file(tmp_path, capsys):
+    path = tmp_path / "notes.npz"
+    path.write_text("these are my notes, not a run\n")
+    assert_refused(path, capsys, "is not a jaxmpm checkpoint (not a NumPy .npz archive)")
+
+
+def test_single_array_file(tmp_path, capsys):
+    path = tmp_path / "one.npz"
+    with open(path, "wb") as f:
+        np.save(f, np.arange(3.0))
+    assert_refused(path, capsys, "single NumPy array (.npy)")
+
+
+def test_archive_without_meta(tmp_path, capsys):
+    path = tmp_path / "other.npz"
+    np.savez(path, a=np.arange(3))
+    assert_refused(path, capsys, "without 'meta'")
+
+
+def test_meta_not_json(good, tmp_path, capsys):
+    data = arrays_of(good)
+    data["meta"] = np.asarray("{this is not json")
+    path = tmp_path / "bad.npz"
+    np.savez(path, **data)
+    assert_refused(path, capsys, "'meta' is not valid JSON")
+
+
+def test_meta_not_an_object(good, tmp_path, capsys):
+    data = arrays_of(good)
+    data["meta"] = np.asarray(json.dumps([1, 2, 3]))
+    path = tmp_path / "bad.npz"
+    np.savez(path, **data)
+    assert_refused(path, capsys, "not a JSON object")
+
+
+def test_meta_not_a_string(good, tmp_path, capsys):
+    data = arrays_of(good)
+    data["meta"] = np.arange(4)
+    path = tmp_path / "bad.npz"
+    np.savez(path, **data)
+    assert_refused(path, capsys, "'meta' is not a JSON string")
+
+
+@pytest.mark.parametrize("key", ["params", "scene", "interpolator", "dt", "steps", "chunk", "saveat", "step"])
+def test_meta_lacks_a_key(good, tmp_path, capsys, key):
+    path = variant(good, tmp_path, meta={key: DROP})
+    assert_refused(path, capsys, f"meta lacks {key}")
+
+
+def test_another_format(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"format": "something-else"})
+    assert_refused(path, capsys, "not a jaxmpm run file", "'something-else'")
+
+
+def test_newer_format(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"format_version": long_run.FORMAT_VERSION + 1})
+    assert_refused(path, capsys, "written by a newer jaxmpm")
+
+
+def test_unknown_scene(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"scene": "no-such-scene"})
+    assert_refused(path, capsys, "unknown scene 'no-such-scene'", "allowed: ", *jm.SCENES)
+
+
+def test_unknown_interpolator(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"interpolator": {"name": "nurbs"}})
+    assert_refused(path, capsys, "unknown interpolator 'nurbs'", *jm.INTERPOLATORS)
+
+
+def test_unknown_transfer(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"transfer": "pic-flip-blend"})
+    assert_refused(path, capsys, "unknown transfer 'pic-flip-blend'", *jm.TRANSFERS)
+
+
+def test_params_the_scene_rejects(good, tmp_path, capsys):
+    params = dict(meta_of(good)["params"], cells=-1)
+    path = variant(good, tmp_path, meta={"params": params})
+    assert_refused(path, capsys, "scene gas-expansion rejects the saved parameters", "cells must be")
+
+
+def test_param_of_the_wrong_type(good, tmp_path, capsys):
+    params = dict(meta_of(good)["params"], beta="hot")
+    path = variant(good, tmp_path, meta={"params": params})
+    assert_refused(
+        path, capsys, "the saved parameter beta of scene gas-expansion must be a number, got 'hot'"
+    )
+
+
+def test_unknown_param(good, tmp_path, capsys):
+    params = dict(meta_of(good)["params"], colour="red")
+    path = variant(good, tmp_path, meta={"params": params})
+    assert_refused(path, capsys, "unknown parameter 'colour'", "beta")
+
+
+def test_interpolator_options_rejected(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"interpolator": {"name": "mpq", "wobble": 3}})
+    assert_refused(path, capsys, "interpolator mpq rejects the saved options")
+
+
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        ({"dt": -1.0}, "dt must be > 0"),
+        ({"dt": "fast"}, "meta's dt must be a number, got 'fast'"),
+        ({"cfl_limit": "high"}, "meta's cfl_limit must be a number or null"),
+        ({"chunk": 0}, "chunk must be an integer >= 1"),
+        ({"chunk": 7}, "chunk must be a multiple of saveat.every"),
+        ({"steps": 2.5}, "steps must be an integer"),
+        ({"ordering": "sideways"}, "ordering must be one of"),
+        ({"saveat": [5]}, "saveat must be a JSON object"),
+        ({"checkpoint_every": 0}, "checkpoint_every must be an integer >= 1"),
+    ],
+)
+def test_meta_values_that_describe_no_run(good, tmp_path, capsys, change, fragment):
+    path = variant(good, tmp_path, meta=change)
+    assert_refused(path, capsys, fragment)
+
+
+def test_state_array_missing(good, tmp_path, capsys):
+    path = variant(good, tmp_path, drop=["state.x"])
+    assert_refused(path, capsys, "state.x is missing", "(8, 1)")
+
+
+def test_state_array_of_the_wrong_shape(good, tmp_path, capsys):
+    path = variant(good, tmp_path, state__F=np.ones((7, 1, 1)))
+    assert_refused(path, capsys, "state.F has shape (7, 1, 1), expected (8, 1, 1)")
+
+
+def test_state_array_of_the_wrong_dtype(good, tmp_path, capsys):
+    v = arrays_of(good)["state.v"].astype(np.float32)
+    path = variant(good, tmp_path, state__v=v)
+    assert_refused(path, capsys, "state.v has dtype float32, expected float64")
+
+
+def test_meta_names_another_transfer_than_the_arrays_hold(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"transfer": "flip"})  # FLIP has no C, the file holds one
+    assert_refused(path, capsys, "holds state.C", "transfer flip")
+
+
+def test_meta_names_other_params_than_the_arrays_hold(good, tmp_path, capsys):
+    params = dict(meta_of(good)["params"], h=0.25)  # the same particle count, other positions
+    path = variant(good, tmp_path, meta={"params": params})
+    assert_refused(
+        path, capsys, "body.X does not match", "gas-expansion", "another scene or other parameters"
+    )
+
+
+def test_meta_names_another_scene_than_the_arrays_hold(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"scene": "vibrating-bar", "params": {"cells": 4}})
+    assert_refused(path, capsys, "body.X", "vibrating-bar")
+
+
+def test_meta_names_another_particle_count(good, tmp_path, capsys):
+    params = dict(meta_of(good)["params"], cells=5)
+    path = variant(good, tmp_path, meta={"params": params})
+    assert_refused(path, capsys, "body.X has shape (8, 1), expected (10, 1)")
+
+
+def test_state_step_and_meta_step_differ(good, tmp_path, capsys):
+    path = variant(good, tmp_path, meta={"step": 10})
+    assert_refused(path, capsys, "state.step is 20 but its meta says step 10")
+
+
+def test_history_of_the_wrong_length(good, tmp_path, capsys):
+    x = arrays_of(good)["history.x"][:3]
+    path = variant(good, tmp_path, history__x=x)
+    assert_refused(path, capsys, "history.x has shape (3, 8, 1), expected (5, 8, 1)")
+
+
+def test_history_missing(good, tmp_path, capsys):
+    path = variant(good, tmp_path, drop=["history.ts"])
+    assert_refused(path, capsys, "history.ts is missing")
+
+
+def test_a_folder_is_not_a_saved_run(tmp_path, capsys):
+    folder = tmp_path / "run.npz"
+    folder.mkdir()
+    assert_refused(folder, capsys, "is a folder")
+
+
+def test_missing_file(tmp_path, capsys):
+    path = tmp_path / "missing.npz"
+    with pytest.raises(FileNotFoundError, match="no saved run"):
+        long_run.load(path)
+    with pytest.raises(FileNotFoundError, match="no saved run"):
+        long_run.resume(path, progress=False)
+    assert main(["resume", str(path)]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert (
+        len(lines) == 1
+        and lines[0].startswith("jaxmpm: error: no saved run")
+        and "Traceback" not in captured.err
+    )
+    assert not path.exists()
+
+
+# --- a run does not overwrite, and finds a bad ``out`` before it compiles anything
+
+
+@pytest.fixture
+def nothing_compiles(monkeypatch):
+    """Fail the test if the run gets as far as building its first state (the first compilation)."""
+
+    def fail(*args, **kwargs):
+        raise AssertionError("compiled before checking out")
+
+    monkeypatch.setattr(long_run, "_start", fail)
+    monkeypatch.setattr(long_run, "_drive", fail)
+
+
+def test_run_does_not_overwrite_a_checkpoint(good, tmp_path, nothing_compiles):
+    path = tmp_path / "run.npz"
+    path.write_bytes(good.read_bytes())
+    before = path.read_bytes()
+    with pytest.raises(ValueError) as info:
+        long_run.run(SCENE, jm.SPQ(), out=path, **KW)
+    message = str(info.value)
+    assert "\n" not in message
+    assert (
+        f"{path} already exists (a jaxmpm checkpoint of gas-expansion at step 20 of 20, complete)" in message
+    )
+    assert "overwrite=True" in message and "--overwrite" in message and f"jaxmpm resume {path}" in message
+    assert path.read_bytes() == before
+
+
+def test_run_does_not_overwrite_any_file(tmp_path, nothing_compiles):
+    path = tmp_path / "thesis.npz"
+    path.write_text("three years of work")
+    with pytest.raises(ValueError) as info:
+        long_run.run_timed(SCENE, jm.SPQ(), out=path, **KW)
+    message = str(info.value)
+    assert f"{path} already exists (an existing file" in message and "overwrite=True" in message
+    assert "jaxmpm resume" not in message
+    assert path.read_text() == "three years of work"
+
+
+def test_overwrite_replaces_the_file(tmp_path):
+    path = tmp_path / "run.npz"
+    path.write_text("old")
+    sol = long_run.run(SCENE, jm.SPQ(), out=path, overwrite=True, **KW)
+    loaded, meta = long_run.load(path)
+    assert meta["step"] == 20 and np.array_equal(np.asarray(loaded.state.x), np.asarray(sol.state.x))
+
+
+def test_out_is_a_folder(tmp_path, nothing_compiles):
+    with pytest.raises(ValueError, match="is a folder, not a file"):
+        long_run.run(SCENE, jm.SPQ(), out=tmp_path, **KW)
+
+
+def test_out_in_a_missing_folder(tmp_path, nothing_compiles):
+    out = tmp_path / "no" / "such" / "run.npz"
+    with pytest.raises(ValueError, match=r"the folder .*such does not exist"):
+        long_run.run(SCENE, jm.SPQ(), out=out, **KW)
+    assert not out.parent.exists()
+
+
+def test_out_in_a_folder_that_cannot_be_written(tmp_path, nothing_compiles):
+    folder = tmp_path / "locked"
+    folder.mkdir()
+    folder.chmod(0o500)
+    try:
+        if os.access(folder, os.W_OK):
+            pytest.skip("this user may write in any folder (root)")
+        with pytest.raises(ValueError, match="cannot write in the folder"):
+            long_run.run(SCENE, jm.SPQ(), out=folder / "run.npz", **KW)
+    finally:
+        folder.chmod(0o700)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_out_in_a_folder_no_one_can_write(nothing_compiles):
+    with pytest.raises(ValueError, match="cannot write in the folder /proc"):  # not even root
+        long_run.run(SCENE, jm.SPQ(), out="/proc/jaxmpm-run.npz", **KW)
+
+
+def test_resume_rewrites_its_own_file_only(good, tmp_path):
+    path = tmp_path / "run.npz"
+    path.write_bytes(good.read_bytes())
+    other = tmp_path / "other.npz"
+    other.write_text("keep me")
+    with pytest.raises(ValueError, match="already exists"):
+        long_run.resume(path, out=other, progress=False)
+    assert other.read_text() == "keep me"
+    long_run.resume(path, progress=False)  # its own file: allowed
+    long_run.resume(path, out=other, overwrite=True, progress=False)
+    assert long_run.load(other)[1]["step"] == 20

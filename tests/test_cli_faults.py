@@ -1,0 +1,206 @@
+"""The command line under faults: a broken run stops computing, Ctrl-C stops a run at once with one
+line, output piped into a reader that leaves, runs too large for memory, and folders that cannot be
+written or already hold another run's files."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+import jaxmpm.cli.run as cli_run
+from jaxmpm import long_run
+from jaxmpm.cli import main
+
+BREAKS = ["run", "gas-expansion", "--interpolator", "spq"]  # leaves the grid at step 638 with dt = 1e-5
+
+
+def one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def count_chunks(monkeypatch, module) -> list:
+    calls = []
+    real = module.wait
+
+    def counted(tree):
+        calls.append(1)
+        return real(tree)
+
+    monkeypatch.setattr(module, "wait", counted)
+    return calls
+
+
+def test_a_broken_run_with_a_huge_step_count_stops_computing(capsys, monkeypatch):
+    chunks = count_chunks(monkeypatch, long_run)
+    assert main(BREAKS + ["--dt", "1e-5", "--steps", "1000000000", "--json"]) == 3
+    captured = capsys.readouterr()
+    line = one_line(captured.err)
+    assert line.startswith("jaxmpm: the run broke down at step 638") and "left the grid" in line
+    # the run went in chunks and stopped after the one that broke down (one chunk holds ~36,000 steps)
+    assert len(chunks) == 1
+    out = json.loads(captured.out)  # --json still reports: the last good state, status and failure
+    assert out["status"] == 4 and out["failure"]["step"] == 638 and out["failure"]["particle"] == 15
+    assert out["t"] == pytest.approx(637e-5, rel=1e-12) and out["steps"] == 1000000000
+    assert out["wall_s"] is None and len(out["particles"]["x"]) == 16
+
+
+def test_a_broken_run_to_an_end_time_stops_computing(capsys, monkeypatch):
+    chunks = count_chunks(monkeypatch, cli_run)
+    argv = BREAKS + ["--t-end", "0.01", "--cfl", "0.5", "--max-steps", "1000000000", "--json"]
+    assert main(argv) == 3
+    captured = capsys.readouterr()
+    assert one_line(captured.err).startswith("jaxmpm: the run broke down at step 4 (after t = ")
+    assert len(chunks) == 1
+    out = json.loads(captured.out)
+    assert out["steps_taken"] == 3 and out["failure"]["step"] == 4 and out["t_end"] == 0.01
+
+
+def test_a_chunked_run_equals_one_scan(capsys):
+    """A run too long for one chunk (a wide grid makes each step slow) equals ``simulate`` bit for bit."""
+    import numpy as np
+
+    import jaxmpm as jm
+
+    argv = [
+        "run",
+        "gas-expansion",
+        "pad=20000",
+        "beta=20",
+        "--interpolator",
+        "mpq",
+        "--artificial-cells",
+        "1",
+    ]
+    assert main(argv + ["--t-end", "0.02", "--cfl", "0.5", "--max-steps", "100000", "--json"]) == 0
+    to_end = json.loads(capsys.readouterr().out)
+    assert main(argv + ["--dt", "1e-4", "--steps", "200", "--json"]) == 0
+    fixed = json.loads(capsys.readouterr().out)
+    scene = jm.GasExpansion(pad=20000, beta=20.0)
+    assert cli_run._plain.__doc__  # the chunk is ~90 steps here: both runs take more than one
+    a = jm.simulate(scene, jm.MPQ(), t_end=0.02, cfl=0.5, max_steps=100000, artificial_cells=1)
+    b = jm.simulate(scene, jm.MPQ(), dt=1e-4, steps=200, artificial_cells=1)
+    assert to_end["steps_taken"] == int(a.state.step) > 100
+    for out, sol in ((to_end, a), (fixed, b)):
+        np.testing.assert_array_equal(out["particles"]["x"], np.asarray(sol.state.x[:, 0]))
+        np.testing.assert_array_equal(out["particles"]["F"], np.asarray(sol.state.F[:, 0, 0]))
+
+
+def _cli(*args: str, **kwargs) -> subprocess.Popen:
+    env = dict(os.environ, JAXMPM_PROGRESS="0")
+    return subprocess.Popen(
+        [sys.executable, "-m", "jaxmpm.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        **kwargs,
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "timing",
+    [
+        ["--dt", "1e-7", "--steps", "1000000000"],
+        ["--t-end", "100", "--cfl", "0.05", "--max-steps", "1000000000"],
+    ],
+)
+def test_ctrl_c_stops_a_plain_run_within_a_second(timing):
+    # A wide grid (each step ~3 ms, chunks of ~70 steps) and a run that would take days.
+    p = _cli(
+        "run",
+        "gas-expansion",
+        "pad=20000",
+        "beta=1",
+        "--interpolator",
+        "mpq",
+        "--artificial-cells",
+        "1",
+        *timing,
+    )
+    time.sleep(12)  # past start-up and compilation
+    assert p.poll() is None, p.communicate()
+    t0 = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=60)
+    waited = time.perf_counter() - t0
+    assert p.returncode == 130, err
+    assert one_line(err).startswith("jaxmpm: interrupted at step ")
+    assert waited < 1.5, waited
+
+
+def test_output_into_a_closed_pipe_is_quiet():
+    reader = subprocess.Popen(["head", "-1"], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL)
+    env = dict(os.environ)
+    p = subprocess.run(
+        [sys.executable, "-m", "jaxmpm.cli", "scenes"],
+        stdout=reader.stdin,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    reader.stdin.close()
+    reader.wait()
+    assert p.stderr == "" and p.returncode in (0, 141)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [["cells=1000000000"], ["dim=2", "cells=20000"], ["dim=3", "cells=200"]],
+    ids=["1d", "2d", "3d"],
+)
+def test_a_run_too_large_for_memory_is_refused_before_anything_is_built(capsys, params):
+    assert (
+        main(["run", "gas-expansion", *params, "--interpolator", "mpq", "--dt", "1e-9", "--steps", "1"]) == 2
+    )
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith("jaxmpm: error: the run (") and "particles" in line and "needs about" in line
+    assert "reduce cells, ppc or pad" in line
+
+
+def test_a_step_count_beyond_the_counter_is_refused(capsys):
+    assert main(BREAKS + ["--dt", "1e-5", "--steps", "10000000000"]) == 2
+    assert "steps must be <= 2147483647" in one_line(capsys.readouterr().err)
+
+
+def test_vtk_and_study_folders_are_checked_first(capsys, tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("mine")
+    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "2"]
+    assert main(small + ["--vtk", str(a_file)]) == 2
+    assert "is a file, not a folder" in one_line(capsys.readouterr().err)
+    assert main(small + ["--vtk", str(a_file / "below")]) == 2
+    assert "cannot write there" in one_line(capsys.readouterr().err)
+    assert main(["study", "talk", "--small", "--out", str(a_file / "below")]) == 2
+    assert "--out" in one_line(capsys.readouterr().err)
+    assert a_file.read_text() == "mine"
+    frames = tmp_path / "frames"
+    assert main(small + ["--vtk", str(frames)]) == 0
+    capsys.readouterr()
+    before = {p.name: p.read_bytes() for p in frames.iterdir()}
+    assert main(small + ["--vtk", str(frames)]) == 2  # another run's frames are not replaced
+    assert "already holds ParaView files" in one_line(capsys.readouterr().err)
+    assert {p.name: p.read_bytes() for p in frames.iterdir()} == before
+    assert main(small + ["--vtk", str(frames), "--overwrite"]) == 0
+
+
+def test_out_is_not_overwritten_without_the_flag(capsys, tmp_path):
+    out = tmp_path / "run.npz"
+    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--no-progress"]
+    assert main(small + ["--steps", "20", "--chunk", "10", "--out", str(out)]) == 0
+    capsys.readouterr()
+    saved = out.read_bytes()
+    assert main(small + ["--steps", "30", "--chunk", "10", "--out", str(out)]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert "already exists" in line and "--overwrite" in line and "jaxmpm resume" in line
+    assert out.read_bytes() == saved
+    assert main(small + ["--steps", "30", "--chunk", "10", "--out", str(out), "--overwrite"]) == 0
+    assert long_run.load(out)[1]["step"] == 30
+    assert main(small + ["--steps", "3", "--overwrite"]) == 2  # nothing to replace
+    assert "--overwrite goes with" in one_line(capsys.readouterr().err)
