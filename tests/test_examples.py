@@ -18,9 +18,8 @@ Each must exit with status 0, and where a page states what its example prints, p
 
 Left out, each with its reason in ``EXCLUDED``: the install lines and the test command itself, which
 are what CI runs (``.ci/run``), and ``mkdocs serve``. Opt-in, marked ``examples_long`` and run only
-with ``JAXMPM_LONG_EXAMPLES=1``, as a separate CI step: the examples of ``LONG`` (full studies, the
-benchmark, fits; each over about 10 s) and of ``BUDGET`` (5-10 s each, kept out of the ordinary
-suite so that it stays under 6 minutes on 2 cores)::
+with ``JAXMPM_LONG_EXAMPLES=1``: the examples of ``LONG`` (full studies, the benchmark, fits; each
+over about 10 s, minutes for most)::
 
     JAXMPM_LONG_EXAMPLES=1 python -m pytest -q -n 0 -m examples_long tests/test_examples.py
 
@@ -70,15 +69,7 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm calibrate gas-slab": "a fit by gradients through whole runs",
     "python:docs/calibration.md": "a fit by gradients through whole runs, and a 1,024-member ensemble",
 }
-BUDGET = {  # 5-10 s each: opt-in only so that the whole suite stays under 6 minutes on 2 cores
-    "shell:docs/command-line.md": "runs, a quick benchmark and an ensemble (about 22 s in all)",
-    "shell:docs/gradients.md": "a run with --grad (about 6 s)",
-    "shell:docs/multid.md": "a 2D run and a blast (about 9 s)",
-    "jaxmpm run gas-expansion --interpolator mpq --artificial-cells 1 --dt 1e-5 --steps 125 --vtk": (
-        "ParaView files of a run (about 4 s)"
-    ),
-}
-OPT_IN = LONG | BUDGET
+OPT_IN = LONG
 LONG_ENABLED = os.environ.get("JAXMPM_LONG_EXAMPLES") == "1"
 
 # What a page says its example prints: (page, a line of the example) -> what the output must contain,
@@ -329,7 +320,7 @@ def test_example(case, tmp_path):
 
 
 @pytest.mark.examples_long
-@pytest.mark.skipif(not LONG_ENABLED, reason="opt-in (LONG, BUDGET): set JAXMPM_LONG_EXAMPLES=1 to run")
+@pytest.mark.skipif(not LONG_ENABLED, reason="opt-in (LONG): set JAXMPM_LONG_EXAMPLES=1 to run")
 @pytest.mark.parametrize("case", LONG_CASES, ids=[c.id for c in LONG_CASES])
 def test_long_example(case, tmp_path):
     check_stated(case, _run(case, tmp_path, timeout=3600, reader=True))
