@@ -177,7 +177,7 @@ def command(args) -> int:
                     **settings,
                 )
             except jm.SimulationError as e:
-                _breakdown_json(args, scene, e.solution)
+                _breakdown_json(args, scene, e.solution, viscosity)
                 raise Breakdown(e.solution, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
         else:
             try:
@@ -185,7 +185,7 @@ def command(args) -> int:
             except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
                 if args.vtk is not None:
                     _write_vtk(args.vtk, scene, interp, settings, e.solution)
-                _breakdown_json(args, scene, e.solution)
+                _breakdown_json(args, scene, e.solution, viscosity)
                 raise Breakdown(e.solution, dt=args.dt) from None
     except ValueError as e:
         raise UsageError(str(e)) from None
@@ -198,21 +198,7 @@ def command(args) -> int:
             raise UsageError(f"--grad: {e}") from None
         grad = {n: float(g[n]) for n in names}
         grad_s = time.perf_counter() - t0
-    run = dict(
-        scene=args.scene,
-        interpolator=args.interpolator,
-        transfer=args.transfer,
-        artificial_cells=args.artificial_cells,
-        ordering=args.ordering,
-        dt=args.dt,
-        steps=args.steps,
-    )
-    if args.t_end is not None:
-        run.update(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step))
-    if viscosity is not None:
-        run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
-    if args.out is not None:
-        run["out"] = str(args.out)
+    run = _settings(args, sol, viscosity)
     if args.vtk is not None:
         paths = _write_vtk(args.vtk, scene, interp, settings, sol)
         run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
@@ -273,26 +259,31 @@ def _advance(model, state, dt, limit, chunk: int):
     return advance(model, jm.setup(model), state, dt, chunk, jm.SaveAt(), None, limit)[0]
 
 
-def _breakdown_json(args, scene, sol) -> None:
+def _breakdown_json(args, scene, sol, viscosity) -> None:
     """With ``--json``, the report of a run that broke down (its last good state, ``status`` and
     ``failure``) on stdout, before the one line on stderr."""
     if args.json:
-        run = dict(
-            scene=args.scene,
-            interpolator=args.interpolator,
-            transfer=args.transfer,
-            artificial_cells=args.artificial_cells,
-            ordering=args.ordering,
-            dt=args.dt,
-            steps=args.steps,
-        )
-        if args.t_end is not None:
-            run.update(
-                t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step)
-            )
-        if args.out is not None:
-            run["out"] = str(args.out)
-        report(run, scene, sol, None, None, as_json=True)
+        report(_settings(args, sol, viscosity), scene, sol, None, None, as_json=True)
+
+
+def _settings(args, sol, viscosity) -> dict:
+    """The run's settings as ``report`` prints them first (and ``--json`` keeps them)."""
+    run = dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        transfer=args.transfer,
+        artificial_cells=args.artificial_cells,
+        ordering=args.ordering,
+        dt=args.dt,
+        steps=args.steps,
+    )
+    if args.t_end is not None:
+        run.update(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step))
+    if viscosity is not None:
+        run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
+    if args.out is not None:
+        run["out"] = str(args.out)
+    return run
 
 
 def _check_vtk_folder(folder, overwrite: bool) -> None:
