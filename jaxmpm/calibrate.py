@@ -1,36 +1,57 @@
-"""Gradient-based calibration of the gas's constants from a free-surface trajectory.
+"""Calibration of the gas's constants from a free-surface trajectory, with their uncertainty.
 
 The cylinder test calibrates an explosive product's equation of state by fitting a measured wall
 trajectory; here the gas slab's free surface ``x_R(t)`` plays that part. Given observations
 ``(t_i, x_i)``, ``calibrate`` fits named continuous parameters of a scene (``gamma``, ``P0``,
-optionally ``rho0``) by minimising
+optionally ``rho0`` or ``p_atm``) by least squares,
 
-    loss = mean_i ((x_R(t_i; params) - x_i) / L)^2,
+    loss = mean_i (r_i / L)^2,        r_i = x_R(t_i; params) - x_i,
 
-with ``x_R`` from a jaxmpm run (its saved history, interpolated linearly in time), by gradient
-descent through the whole run:
+with ``x_R`` from a jaxmpm run (its saved history, interpolated linearly in time).
 
-- parameters are kept in their physical ranges by a change of variables ``theta``: ``gamma = 1 +
-  (gamma_0 - 1) e^theta``, ``P0 = p_atm + (P0_0 - p_atm) e^theta``, ``rho0 = rho0_0 e^theta`` (any
-  other positive parameter: ``p_0 e^theta``), so ``theta = 0`` is the start and every ``theta`` is
-  admissible;
-- ``method="adam"`` (``optax.adam``) or ``"lbfgs"`` (``optax.lbfgs`` with its zoom line search);
-- several starts at once: ``starts`` is a list of start dicts, run as one ``vmap``-ed update per
-  iteration; the best final loss wins;
-- a progress bar (tqdm) on long fits; the loss history and the fitted values are returned.
+**The fit's variables.** Parameters stay in their physical ranges by a change of variables
+``theta = ln(p - p_off)``: ``p_off = 1`` for ``gamma``, ``p_atm`` for ``P0``, 0 for any other (positive)
+parameter. Every ``theta`` is admissible.
 
-A run that breaks down during the fit (a trial too stiff for the time step, a slab that leaves the
-grid) makes that start's loss non-finite: that start stops where it was, ``Fit.failed_starts`` says
-at which iteration, with which values, and why (the step, particle and quantity of the broken run),
-and the other starts go on. When every start has broken down, ``calibrate`` raises
-``CalibrationError`` with those messages: a fit never continues from NaN.
+**Methods.** ``method="lm"`` (the default): Levenberg-Marquardt on the residuals (damping isotropic in
+``theta``, updated by Nielsen's rule), with the Jacobian
+``J = dr / dtheta`` by forward-mode autodiff through the whole run. Each iteration evaluates one trial
+point; a trial whose run breaks down (or whose loss is higher) is rejected, the damping raised and the
+step shortened: a broken run's loss is never used (``Fit.rejected`` lists every rejected trial).
+``"lbfgs"`` (``optax.lbfgs`` with its zoom line search, gradients in reverse mode) and ``"adam"``
+remain; a broken trial gives them a NaN loss, which the line search refuses. Several starts run at
+once under ``vmap``; the lowest final loss wins.
+
+**Uncertainty at the optimum.** From ``J`` at the best point: the Gauss-Newton covariance
+``C = sigma^2 (J^T J)^-1`` with ``sigma^2 = sum r^2 / (n - p)`` (or the measurement noise, ``noise``),
+in the fit's variables and in the physical ones (``C_phys = D C D``, ``D = diag(p - p_off)``); each
+parameter's standard error ``sqrt(C_ii)``, the correlation matrix, and the condition number of
+``J^T J`` in relative variables (``d r / d ln p``: units drop out).
+
+**Identifiability.** When the data do not separate the parameters (a correlation beyond
+``max_correlation``, 0.99, or a relative standard error above ``max_relative_std``, 10%), the fit still
+returns its best point, with ``Fit.warning`` saying so, naming the direction the data cannot see (the
+weakest eigenvector of ``J^T J`` in relative variables) and, for the gas slab observed only before its
+first turnaround, when that turnaround comes; ``calibrate`` also issues a ``CalibrationWarning``.
+
+**Faults.** A start whose own run breaks down stops there (``Fit.failed_starts`` says why: the step,
+particle and quantity), the others go on; when every start broke down, ``CalibrationError``. When the
+best start cannot go on because every step toward a lower loss is a run that breaks down, the fit has
+no answer: ``CalibrationError`` names the breakdown and what to change. A fit stopped by its iteration
+count before converging says so in ``Fit.warning``. Data beyond the grid are refused before any run.
+
+**Experiment design.** ``information`` gives the Fisher information ``J^T J / sigma^2`` of an
+observation plan at given constants, and the standard errors a fit would have, before any data exist.
+``profile`` evaluates the loss along the weakest direction. ``Fit.sample`` draws constants from the
+fitted Gaussian (for ``jm.ensemble``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+import warnings
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -41,11 +62,21 @@ from ._checks import check_int, check_positive
 from ._simulate import SaveAt, simulate
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
-from .scenes.gas_slab import free_surface
+from .scenes.gas_slab import free_surface, pad_for
 from .sensitivity import check_names, continuous_parameters
+from .status import LEFT_GRID
 
 NOT_FITTED = {"h": "the grid spacing", "dt": "the model's time step"}
 """Continuous inputs of a run that are not material constants, so ``calibrate`` does not fit them."""
+
+MAX_CORRELATION = 0.99
+"""Default bound on the magnitude of a correlation between fitted parameters before ``Fit.warning``."""
+
+MAX_RELATIVE_STD = 0.10
+"""Default bound on a parameter's relative standard error before ``Fit.warning``."""
+
+METHODS = ("lm", "lbfgs", "adam")
+"""The optimisers ``calibrate`` offers."""
 
 
 def fittable(scene: AbstractScene) -> tuple[str, ...]:
@@ -61,7 +92,32 @@ def fittable(scene: AbstractScene) -> tuple[str, ...]:
 
 
 class CalibrationError(RuntimeError):
-    """A fit could not go on: a trial run broke down or the loss became non-finite."""
+    """A fit has no answer: every start broke down, or the way to a lower loss is runs that break down."""
+
+
+class CalibrationWarning(UserWarning):
+    """A fit returned its best point, but the data do not determine it well (or it did not converge)."""
+
+
+def offsets(scene: AbstractScene, names: Sequence[str]) -> dict:
+    """The lower bound ``p_off`` of each parameter: ``theta = ln(p - p_off)`` is the fit's variable.
+
+    Args:
+        scene: the scene (``p_atm`` bounds ``P0`` from below).
+        names: the fitted names.
+
+    Returns:
+        Name to ``p_off``: 1 for ``gamma``, ``p_atm`` for ``P0`` (when the scene has it), else 0.
+    """
+    out = {}
+    for n in names:
+        if n == "gamma":
+            out[n] = 1.0
+        elif n == "P0" and hasattr(scene, "p_atm") and "p_atm" not in names:
+            out[n] = float(scene.p_atm)
+        else:
+            out[n] = 0.0
+    return out
 
 
 @dataclasses.dataclass
@@ -70,12 +126,30 @@ class Fit:
 
     Attributes:
         fitted: the best start's fitted values, name to float.
-        loss: its final loss.
+        loss: its final loss, ``mean((r / L)^2)``.
         iterations: iterations taken.
-        history: loss per iteration and start, shape ``(iterations + 1, starts)``.
+        history: loss per iteration and start, shape ``(iterations + 1, starts)`` (NaN for a start
+            that broke down).
         starts_fitted: every start's fitted values, name to array ``(starts,)``.
         wall_s: wall time of the fit (compilation included).
-        failed_starts: start index to why it stopped (a trial run broke down); the others went on.
+        failed_starts: start index to why it stopped (its run broke down); the others went on.
+        method: the optimiser.
+        converged: whether the best start met the convergence test (else ``warning`` says so).
+        names: the fitted names, the order of the matrices below.
+        std: each parameter's standard error (physical units).
+        covariance: the Gauss-Newton covariance in physical units, ``(p, p)``.
+        covariance_theta: the same in the fit's variables ``theta = ln(p - p_off)``.
+        correlation: the correlation matrix, ``(p, p)``.
+        condition: the condition number of ``J^T J`` in relative variables (``d r / d ln p``).
+        sigma: the noise level used: ``noise`` when given, else ``sqrt(sum r^2 / (n - p))``.
+        noise_given: whether ``sigma`` is the given noise.
+        weakest: the direction the data see least, a unit vector in ``d ln p`` (name to component).
+        warning: ``None``, or why the answer should not be trusted as it stands (identifiability, no
+            convergence).
+        offsets: name to ``p_off`` of the fit's variables.
+        rejected: every rejected trial point (``"lm"``): start, iteration, values, and whether its run
+            broke down (``broke``, with the reason in ``why`` for the first ones) or raised the loss.
+        residuals: the best start's residuals ``x_model - x_data`` at the data times.
     """
 
     fitted: dict
@@ -85,6 +159,67 @@ class Fit:
     starts_fitted: dict
     wall_s: float
     failed_starts: dict = dataclasses.field(default_factory=dict)
+    method: str = "lm"
+    converged: bool = True
+    names: tuple = ()
+    std: dict = dataclasses.field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    covariance_theta: np.ndarray | None = None
+    correlation: np.ndarray | None = None
+    condition: float = float("nan")
+    sigma: float = float("nan")
+    noise_given: bool = False
+    weakest: dict = dataclasses.field(default_factory=dict)
+    warning: str | None = None
+    offsets: dict = dataclasses.field(default_factory=dict)
+    rejected: list = dataclasses.field(default_factory=list)
+    residuals: np.ndarray | None = None
+
+    def sample(self, members: int, seed: int = 0) -> dict:
+        """Constants drawn from the fitted Gaussian, for ``jm.ensemble(scene, interp, vary=...)``.
+
+        The draw is Gaussian in the fit's variables ``theta = ln(p - p_off)`` (mean: the fitted
+        values; covariance: ``covariance_theta``), so every member is admissible (``gamma > 1``,
+        ``P0 > p_atm``).
+
+        Args:
+            members: how many.
+            seed: the seed of numpy's generator.
+
+        Returns:
+            Name to an array ``(members,)``.
+
+        Raises:
+            ValueError: the fit has no finite covariance (the data do not determine it).
+        """
+        check_int("members", members, 1)
+        check_int("seed", seed, 0)
+        C = self.covariance_theta
+        if C is None or not np.all(np.isfinite(C)):
+            raise ValueError("this fit has no finite covariance to draw from (see Fit.warning)")
+        return draw(self.fitted, self.offsets, self.names, C, members, seed)
+
+
+def draw(fitted: dict, offs: dict, names: Sequence[str], covariance_theta, members: int, seed) -> dict:
+    """Draw ``members`` parameter sets from ``N(theta_fit, covariance_theta)`` in ``theta = ln(p - p_off)``.
+
+    Args:
+        fitted: name to the fitted value.
+        offs: name to ``p_off``.
+        names: the order of the covariance's rows.
+        covariance_theta: the covariance in the fit's variables, ``(p, p)``.
+        members: how many.
+        seed: the seed of numpy's generator, or a ``numpy.random.Generator``.
+
+    Returns:
+        Name to an array ``(members,)`` of physical values.
+    """
+    names = tuple(names)
+    C = np.asarray(covariance_theta, dtype=float)
+    mean = np.array([np.log(fitted[n] - offs[n]) for n in names])
+    rng = np.random.default_rng(seed)
+    theta = rng.multivariate_normal(mean, C, size=members, method="eigh")
+    return {n: offs[n] + np.exp(theta[:, i]) for i, n in enumerate(names)}
 
 
 def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, dt, **kwargs) -> jax.Array:
@@ -101,7 +236,7 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
         ``x_R(ts)`` (``scenes.gas_slab.free_surface``), NaN everywhere when the run broke down.
     """
     ts = jnp.asarray(ts)
-    steps = int(np.ceil(float(np.max(np.asarray(ts))) / float(dt) - 1e-9))
+    steps = _steps(ts, dt)
     fields = ("x", "F", "corners") if interpolator.tracks_corners else ("x", "F")
     sol = simulate(
         scene, interpolator, dt=dt, steps=steps, saveat=SaveAt(every=1, fields=fields), throw=False, **kwargs
@@ -112,23 +247,68 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
     return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, xr))
 
 
-def _transforms(scene, names):
-    """``(to_physical(theta) -> dict, starts)`` keeping each parameter in its range."""
-    p_atm = getattr(scene, "p_atm", None)
+def _steps(ts, dt) -> int:
+    return int(np.ceil(float(np.max(np.asarray(ts))) / float(dt) - 1e-9))
 
-    def to_physical(theta, start):
-        out = {}
-        for i, n in enumerate(names):
-            e = jnp.exp(theta[i])
-            if n == "gamma":
-                out[n] = 1.0 + (start[n] - 1.0) * e
-            elif n == "P0" and p_atm is not None:
-                out[n] = p_atm + (start[n] - p_atm) * e
-            else:
-                out[n] = start[n] * e
-        return out
 
-    return to_physical
+class _Model:
+    """The residuals and their Jacobian in the fit's variables, batched over members (starts or data
+    sets): one compiled ``vmap`` of a forward-mode Jacobian through the run."""
+
+    def __init__(self, scene, interpolator, names, t_data, dt, simulate_kwargs):
+        self.scene, self.interpolator, self.names = scene, interpolator, tuple(names)
+        self.t_data, self.dt, self.kwargs = t_data, dt, simulate_kwargs
+        offs = offsets(scene, names)
+        self.off = np.array([offs[n] for n in names])
+        self.offsets = offs
+        dtype = scene.h.dtype
+        off = jnp.asarray(self.off, dtype=dtype)
+
+        def x_of(theta, start_theta):
+            phys = off + jnp.exp(start_theta + theta)
+            sc = type(scene)(**{**scene.parameter_values(), **dict(zip(names, phys))})
+            return trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
+
+        def rj(theta, start_theta, data):
+            f = lambda th: x_of(th, start_theta)  # noqa: E731
+            J = jax.jacfwd(f, has_aux=False)(theta)
+            return f(theta) - data, J
+
+        def r_only(theta, start_theta, data):
+            return x_of(theta, start_theta) - data
+
+        self._rj = jax.jit(jax.vmap(rj))
+        self._r = jax.jit(jax.vmap(r_only))
+
+    def physical(self, start_theta, theta) -> np.ndarray:
+        return self.off + np.exp(np.asarray(start_theta) + np.asarray(theta))
+
+    def residuals_and_jacobian(self, theta, start_theta, data):
+        r, J = self._rj(jnp.asarray(theta), jnp.asarray(start_theta), jnp.asarray(data))
+        r, J = np.asarray(r), np.asarray(J)
+        ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(J), axis=(1, 2))
+        return r, J, ok
+
+    def residuals(self, theta, start_theta, data):
+        r = np.asarray(self._r(jnp.asarray(theta), jnp.asarray(start_theta), jnp.asarray(data)))
+        return r, np.all(np.isfinite(r), axis=1)
+
+    def why(self, values: np.ndarray) -> tuple[str, dict | None]:
+        """A plain run at ``values`` (physical): what broke (the step, particle and quantity)."""
+        trial = dict(zip(self.names, (float(v) for v in values)))
+        sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
+        sol = simulate(
+            sc, self.interpolator, dt=self.dt, steps=_steps(self.t_data, self.dt), throw=False, **self.kwargs
+        )
+        f = sol.failure()
+        where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
+        if f is None:
+            return f"the loss at {where} is not finite", None
+        return (
+            f"the run at {where} broke down at step {f['step']}, particle {f['particle']}: "
+            + "; ".join(f["quantities"]),
+            f,
+        )
 
 
 def calibrate(
@@ -140,10 +320,13 @@ def calibrate(
     starts: Sequence[dict] | dict | None = None,
     *,
     dt,
-    method: str = "lbfgs",
+    method: str = "lm",
     iterations: int = 50,
     learning_rate: float = 0.05,
     tol: float = 1e-14,
+    noise: float | None = None,
+    max_correlation: float = MAX_CORRELATION,
+    max_relative_std: float = MAX_RELATIVE_STD,
     progress: bool | None = None,
     **simulate_kwargs,
 ) -> Fit:
@@ -158,23 +341,160 @@ def calibrate(
         starts: one dict or a list of dicts of start values (missing names start at the scene's
             values); several starts run at once under ``vmap``.
         dt: the model's time step (fixed through the fit; ``cfl_limit`` still guards it).
-        method: ``"lbfgs"`` (default) or ``"adam"``.
-        iterations: the most iterations; the fit stops earlier when every start's loss is below
-            ``tol`` or stops improving.
-        learning_rate: Adam's step in ``theta`` (log) space.
+        method: ``"lm"`` (Levenberg-Marquardt, the default), ``"lbfgs"`` or ``"adam"``.
+        iterations: the most iterations; the fit stops earlier when it converges (``lm``: the loss
+            falls below ``tol``, or a step would lower it by less than 1e-8 of itself; the others: no
+            start improved by 1e-9 of its loss in 3 iterations).
+        learning_rate: Adam's step in ``theta``.
+        tol: a loss below which a start has converged.
+        noise: the measurement noise (a standard deviation, in the units of ``x_data``); ``None``:
+            estimated from the residuals.
+        max_correlation: the largest acceptable magnitude of a correlation (else ``Fit.warning``).
+        max_relative_std: the largest acceptable relative standard error (else ``Fit.warning``).
         progress: a tqdm bar (``None``: only on a terminal or in a notebook).
         **simulate_kwargs: passed to ``simulate`` (``transfer``, ``artificial_cells``, ...).
 
     Returns:
-        A ``Fit``.
+        A ``Fit``, with its uncertainty. A ``CalibrationWarning`` is issued when ``Fit.warning`` is set.
 
     Raises:
         ValueError: bad input (names that are not continuous parameters, ``h`` or ``dt``, a name
             given twice, an unknown method, data of mismatched shapes or not finite, times not
-            increasing from ``>= 0``).
-        CalibrationError: every start broke down.
+            increasing from ``>= 0``, data beyond the grid, a bad ``noise`` or threshold).
+        CalibrationError: every start broke down, or the best start cannot go on because every
+            step toward a lower loss is a run that breaks down.
     """
     names = tuple(fit)
+    _check_names(scene, names)
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(repr(m) for m in METHODS)}, got {method!r}")
+    check_int("iterations", iterations, 1)
+    check_positive("learning_rate", learning_rate)
+    _check_thresholds(noise, max_correlation, max_relative_std)
+    t_data, x_data = _check_data(scene, t_data, x_data)
+    if isinstance(starts, dict) or starts is None:
+        starts = [starts or {}]
+    unknown = [k for s in starts for k in s if k not in names]
+    if unknown:
+        raise ValueError(
+            f"starts name parameters that are not fitted: {sorted(set(unknown))}; fitted: {names}"
+        )
+    base = {n: float(getattr(scene, n)) for n in names}
+    start_phys = np.array([[float(s.get(n, base[n])) for n in names] for s in starts])
+    model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
+    _check_starts(names, model.off, start_phys)
+    start_theta = np.log(start_phys - model.off)
+    data = np.broadcast_to(np.asarray(x_data), (len(starts), x_data.shape[0]))
+    L = float(scene.length)
+    t0 = time.perf_counter()
+    bar = _bar(progress, iterations)
+    try:
+        if method == "lm":
+            run = _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar)
+        else:
+            run = _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - t0
+    return _finish(model, run, start_theta, data, L, wall, method, noise, max_correlation, max_relative_std)
+
+
+def calibrate_each(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    t_data,
+    x_sets,
+    fit: Sequence[str] = ("gamma", "P0"),
+    start: dict | None = None,
+    *,
+    dt,
+    iterations: int = 50,
+    tol: float = 1e-14,
+    noise: float | None = None,
+    max_correlation: float = MAX_CORRELATION,
+    max_relative_std: float = MAX_RELATIVE_STD,
+    **simulate_kwargs,
+) -> list[Fit]:
+    """Fit each of several data sets at the same times, all in one ``vmap``-ed Levenberg-Marquardt.
+
+    For studies of the fit itself: e.g. many noise draws of one experiment, to compare the reported
+    standard errors with the spread of the fitted values. No warning is issued; each ``Fit`` carries
+    its own ``warning``.
+
+    Args:
+        scene: the scene; parameters not fitted keep its values.
+        interpolator: the MPM method of the model.
+        t_data: observation times, shared.
+        x_sets: the observed positions, ``(data sets, times)``.
+        fit: the names to fit.
+        start: start values (missing names start at the scene's values), the same for every set.
+        dt: the model's time step.
+        iterations: the most iterations.
+        tol: a loss below which a fit has converged.
+        noise: the measurement noise (``None``: estimated per data set).
+        max_correlation: as for ``calibrate``.
+        max_relative_std: as for ``calibrate``.
+        **simulate_kwargs: passed to ``simulate``.
+
+    Returns:
+        One ``Fit`` per data set.
+
+    Raises:
+        ValueError: bad input, as for ``calibrate``.
+        CalibrationError: the start's run breaks down.
+    """
+    names = tuple(fit)
+    _check_names(scene, names)
+    check_int("iterations", iterations, 1)
+    _check_thresholds(noise, max_correlation, max_relative_std)
+    x_sets = np.asarray(x_sets, dtype=float)
+    if x_sets.ndim != 2:
+        raise ValueError(f"x_sets must be 2D (data sets, times), got shape {x_sets.shape}")
+    t_data, _ = _check_data(scene, t_data, x_sets[0])
+    for i, xs in enumerate(x_sets):
+        _check_data(scene, t_data, xs, what=f"x_sets[{i}]")
+    start = dict(start or {})
+    unknown = [k for k in start if k not in names]
+    if unknown:
+        raise ValueError(f"start names parameters that are not fitted: {sorted(unknown)}; fitted: {names}")
+    model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
+    one = np.array([[float(start.get(n, getattr(scene, n))) for n in names]])
+    _check_starts(names, model.off, one)
+    start_theta = np.repeat(np.log(one - model.off), x_sets.shape[0], axis=0)
+    L = float(scene.length)
+    t0 = time.perf_counter()
+    run = _levenberg_marquardt(model, start_theta, x_sets, iterations, tol, L, None)
+    wall = time.perf_counter() - t0
+    if run["failed"]:
+        why = next(iter(run["failed"].values()))
+        raise CalibrationError(f"calibrate_each: the start's run broke down: {why}")
+    fits = []
+    for b in range(x_sets.shape[0]):
+        one_run = {k: run[k][b : b + 1] for k in ("theta", "r", "J", "state")}
+        one_run["iterations"] = run["iterations"]
+        one_run["history"] = run["history"][:, b : b + 1]
+        one_run["rejected"] = [dict(r, start=0) for r in run["rejected"] if r["start"] == b]
+        one_run["failed"] = {}
+        fits.append(
+            _finish(
+                model,
+                one_run,
+                start_theta[b : b + 1],
+                x_sets[b : b + 1],
+                L,
+                wall,
+                "lm",
+                noise,
+                max_correlation,
+                max_relative_std,
+                warn=False,
+            )
+        )
+    return fits
+
+
+def _check_names(scene, names) -> None:
     check_names(scene, names)
     for n in names:
         if n in NOT_FITTED:
@@ -184,161 +504,681 @@ def calibrate(
             )
     if len(set(names)) != len(names):
         raise ValueError(f"fit names a parameter twice: {names}")
-    if method not in ("lbfgs", "adam"):
-        raise ValueError(f"method must be 'lbfgs' or 'adam', got {method!r}")
-    check_int("iterations", iterations, 1)
-    check_positive("learning_rate", learning_rate)
-    t_data = jnp.asarray(t_data, dtype=scene.h.dtype)
-    x_data = jnp.asarray(x_data, dtype=scene.h.dtype)
+
+
+def _check_thresholds(noise, max_correlation, max_relative_std) -> None:
+    if noise is not None:
+        check_positive("noise", noise)
+    if not (isinstance(max_correlation, (int, float)) and 0.0 < max_correlation <= 1.0):
+        raise ValueError(f"max_correlation must be a number in (0, 1], got {max_correlation!r}")
+    check_positive("max_relative_std", max_relative_std)
+
+
+def _check_data(scene, t_data, x_data, what="x_data"):
+    dtype = scene.h.dtype
+    t_data = jnp.asarray(t_data, dtype=dtype)
+    x_data = jnp.asarray(x_data, dtype=dtype)
     if t_data.ndim != 1 or t_data.shape != x_data.shape or t_data.size < 2:
-        raise ValueError("t_data and x_data must be 1D arrays of the same length (>= 2)")
-    for what, a in (("t_data", t_data), ("x_data", x_data)):
+        raise ValueError(f"t_data and {what} must be 1D arrays of the same length (>= 2)")
+    for name, a in (("t_data", t_data), (what, x_data)):
         bad = np.flatnonzero(~np.isfinite(np.asarray(a)))
         if bad.size:
-            raise ValueError(f"{what} must be finite; entry {int(bad[0])} is {float(a[bad[0]])}")
+            raise ValueError(f"{name} must be finite; entry {int(bad[0])} is {float(a[bad[0]])}")
     t_host = np.asarray(t_data)
     if t_host[0] < 0 or np.any(np.diff(t_host) <= 0):
         raise ValueError("t_data must start at >= 0 and increase")
-    if isinstance(starts, dict) or starts is None:
-        starts = [starts or {}]
-    base = {n: float(getattr(scene, n)) for n in names}
-    start_vals = {n: jnp.asarray([float(s.get(n, base[n])) for s in starts]) for n in names}
-    unknown = [k for s in starts for k in s if k not in names]
-    if unknown:
+    x_max = float(np.max(np.asarray(x_data)))
+    grid_end = float(scene.length) + scene.pad * float(scene.h)
+    # a particle's stencil reaches up to 2 cells past its domain (CPDI, GIMP): the grid must hold that
+    if x_max > grid_end - 2.0 * float(scene.h):
         raise ValueError(
-            f"starts name parameters that are not fitted: {sorted(set(unknown))}; fitted: {names}"
+            f"{what} reach x = {x_max:.6g}, but the grid ends at x = {grid_end:.6g} (pad = {scene.pad} "
+            f"cells of h = {float(scene.h):.6g}): the model cannot follow the data; use pad >= "
+            f"{pad_for(scene, 1.25 * x_max)}"
         )
-    to_physical = _transforms(scene, names)
-    L = scene.length
+    return t_data, x_data
 
-    def loss_fn(theta, start):
-        params = to_physical(theta, start)
-        sc = type(scene)(**{**scene.parameter_values(), **params})
-        x = trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
-        return jnp.mean(jnp.square((x - x_data) / L))
 
-    n_starts = len(starts)
-    theta0 = jnp.zeros((n_starts, len(names)), dtype=scene.h.dtype)
-    if method == "adam":
-        opt = optax.adam(learning_rate)
-    else:
-        opt = optax.lbfgs()
+def _check_starts(names, off, start_phys) -> None:
+    for i, n in enumerate(names):
+        bad = np.flatnonzero(~(start_phys[:, i] > off[i]))
+        if bad.size:
+            raise ValueError(f"start {int(bad[0])}: {n} = {start_phys[bad[0], i]:.6g} must be > {off[i]:.6g}")
+
+
+def _loss(r, L):
+    return np.mean(np.square(r / L), axis=-1)
+
+
+def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar) -> dict:
+    """Levenberg-Marquardt with Marquardt's diagonal scaling, batched over members (host loop, one
+    compiled ``vmap`` of residuals and Jacobian per iteration). A trial that breaks down or raises the
+    loss is rejected and the damping raised; a broken run's loss is never used."""
+    B, p = start_theta.shape
+    theta = np.zeros((B, p))
+    r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
+    failed: dict[int, str] = {}
+    for b in np.flatnonzero(~ok):
+        failed[int(b)] = "at its start: " + model.why(model.physical(start_theta[b], theta[b]))[0]
+    cost = np.where(ok, 0.5 * np.sum(np.square(np.where(ok[:, None], r, 0.0)), axis=1), np.inf)
+    lam, nu = np.full(B, 1e-3), np.full(B, 2.0)
+    state = np.where(ok, "running", "failed").astype(object)
+    rejected: list[dict] = []
+    why_left = 8  # the first broken trials get their reason (a plain run each)
+    history = [np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan)]
+    it = 0
+    for it in range(1, iterations + 1):
+        active = state == "running"
+        if not active.any():
+            it -= 1
+            break
+        A = np.einsum("bni,bnj->bij", J, J)
+        g = np.einsum("bni,bn->bi", J, r)
+        # converged already: the full Gauss-Newton step would gain less than 1e-8 of the cost
+        gn = np.zeros((B, p))
+        for b in np.flatnonzero(active):
+            gn[b] = -np.linalg.lstsq(A[b], g[b], rcond=None)[0]
+        gain = -np.einsum("bi,bi->b", g, gn) * 0.5
+        done = active & ((gain <= 1e-8 * cost) | (2.0 * cost / (data.shape[1] * L * L) <= tol))
+        state[done] = "converged"
+        active &= ~done
+        if not active.any():
+            it -= 1
+            break
+        delta = np.zeros((B, p))
+        for b in np.flatnonzero(active):
+            d = np.full(p, max(float(np.max(np.diag(A[b]))), 1e-300))  # Levenberg: isotropic in theta
+            try:
+                delta[b] = -np.linalg.solve(A[b] + lam[b] * np.diag(d), g[b])
+            except np.linalg.LinAlgError:
+                delta[b] = -np.linalg.lstsq(A[b] + lam[b] * np.diag(d), g[b], rcond=None)[0]
+        trial = theta + delta
+        r_t, J_t, ok_t = model.residuals_and_jacobian(trial, start_theta, data)
+        cost_t = np.where(ok_t, 0.5 * np.sum(np.square(np.where(ok_t[:, None], r_t, 0.0)), axis=1), np.inf)
+        pred = -(np.einsum("bi,bi->b", g, delta) + 0.5 * np.einsum("bi,bij,bj->b", delta, A, delta))
+        accept = active & ok_t & (cost_t < cost)
+        broke = active & ~ok_t
+        for b in np.flatnonzero(active & ~accept):
+            values = model.physical(start_theta[b], trial[b])
+            entry = dict(
+                start=int(b),
+                iteration=it,
+                values=dict(zip(model.names, (float(v) for v in values))),
+                broke=bool(broke[b]),
+                loss=float(2.0 * cost_t[b] / (data.shape[1] * L * L)) if ok_t[b] else float("nan"),
+            )
+            if broke[b] and why_left > 0:
+                entry["why"], entry["failure"] = model.why(values)
+                why_left -= 1
+            rejected.append(entry)
+        with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf where a run broke: masked
+            rho = np.where(accept & (pred > 0), (cost - cost_t) / pred, 0.0)
+        # Nielsen's damping update: smooth in the gain ratio on success, doubling growth on failure
+        lam = np.where(accept, lam * np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), lam * nu)
+        nu = np.where(accept, 2.0, np.where(active, 2.0 * nu, nu))
+        lam = np.maximum(lam, 1e-15)
+        with np.errstate(invalid="ignore"):  # inf - inf where a run broke: not accepted
+            gained = np.where(accept, cost - cost_t, np.inf)
+        small = accept & (
+            (gained <= 1e-8 * cost)
+            | (np.max(np.abs(delta), axis=1) <= 1e-12)
+            | (2.0 * cost_t / (data.shape[1] * L * L) <= tol)
+        )
+        theta = np.where(accept[:, None], trial, theta)
+        r = np.where(accept[:, None], r_t, r)
+        J = np.where(accept[:, None, None], J_t, J)
+        cost = np.where(accept, cost_t, cost)
+        state[small] = "converged"
+        stuck = active & ~accept & (lam > 1e12)
+        for b in np.flatnonzero(stuck):
+            state[b] = "blocked" if broke[b] else "stalled"
+        history.append(np.where(state != "failed", 2.0 * cost / (data.shape[1] * L * L), np.nan))
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(loss=f"{np.nanmin(history[-1]):.3e}")
+    # out of iterations while trial runs kept breaking down (in the last quarter of the iterations):
+    # the breakdowns are what holds the fit back
+    recent = {e["start"] for e in rejected if e["broke"] and e["iteration"] > 0.75 * it}
+    for b in np.flatnonzero(state == "running"):
+        state[b] = "blocked" if b in recent else "iterations"
+    return dict(
+        theta=theta,
+        r=r,
+        J=J,
+        state=state,
+        failed=failed,
+        rejected=rejected,
+        history=np.stack(history),
+        iterations=it,
+    )
+
+
+def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar) -> dict:
+    """L-BFGS (optax, zoom line search) or Adam on the loss, batched over starts; a start whose run
+    breaks down (a non-finite loss) stops there and is reported, its slot following a live start."""
+    B, p = start_theta.shape
+    dtype = model.scene.h.dtype
+
+    off = jnp.asarray(model.off, dtype=dtype)
+    scene, names, interp = model.scene, model.names, model.interpolator
+
+    def loss_fn(theta, start_theta, data):
+        phys = off + jnp.exp(start_theta + theta)
+        sc = type(scene)(**{**scene.parameter_values(), **dict(zip(names, phys))})
+        x = trajectory(sc, interp, model.t_data, dt=model.dt, **model.kwargs)
+        return jnp.mean(jnp.square((x - data) / L))
+
+    opt = optax.adam(learning_rate) if method == "adam" else optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss_fn) if method == "lbfgs" else None
 
-    def update(theta, state, start):
+    def update(theta, state, start_theta, data):
         # optax's L-BFGS mixes int32 and int64 counters: allow it standard promotion even where a
         # user (or the test suite) runs JAX with strict promotion.
         with jax.numpy_dtype_promotion("standard"):
             if method == "lbfgs":
-                value, grad = value_and_grad(theta, start, state=state)
+                value, grad = value_and_grad(theta, start_theta, data, state=state)
                 updates, state = opt.update(
-                    grad, state, theta, value=value, grad=grad, value_fn=lambda th: loss_fn(th, start)
+                    grad,
+                    state,
+                    theta,
+                    value=value,
+                    grad=grad,
+                    value_fn=lambda th: loss_fn(th, start_theta, data),
                 )
             else:
-                value, grad = jax.value_and_grad(loss_fn)(theta, start)
+                value, grad = jax.value_and_grad(loss_fn)(theta, start_theta, data)
                 updates, state = opt.update(grad, state, theta)
             return optax.apply_updates(theta, updates), state, value
 
     update_all = jax.jit(jax.vmap(update))
+    theta = jnp.zeros((B, p), dtype=dtype)
     with jax.numpy_dtype_promotion("standard"):
-        state = jax.vmap(opt.init)(theta0)
-    theta = theta0
-    history = []
-    t0 = time.perf_counter()
-    bar = _bar(progress, iterations)
-    alive = np.ones(n_starts, dtype=bool)
+        state = jax.vmap(opt.init)(theta)
+    run_start, run_data = jnp.asarray(start_theta, dtype=dtype), jnp.asarray(data, dtype=dtype)
+    alive = np.ones(B, dtype=bool)
     failed: dict[int, str] = {}
     frozen: dict[int, np.ndarray] = {}
-
-    def physical(th, starts_):
-        return {n: np.asarray(v) for n, v in to_physical_batch(to_physical, th, starts_).items()}
-
-    run_starts = dict(start_vals)  # a broken start's slot takes a live start's values (see below)
-
+    history = []
     it = 0
-    try:
-        for it in range(1, iterations + 1):
-            new_theta, new_state, value = update_all(theta, state, run_starts)
-            value = np.asarray(value)
-            broke = alive & ~(np.isfinite(value) & np.all(np.isfinite(np.asarray(new_theta)), axis=1))
-            for b in np.flatnonzero(broke):  # say why, from a plain run at that start's trial values
-                trial = {n: float(v[b]) for n, v in physical(theta, run_starts).items()}
-                why = _why(scene, interpolator, trial, t_data, dt, simulate_kwargs)
-                failed[int(b)] = f"iteration {it}: {why}"
-                frozen[int(b)] = np.asarray(theta[b])
-            alive &= ~broke
-            if not alive.any():
-                raise CalibrationError(
-                    "calibrate: every start broke down: "
-                    + "; ".join(f"start {b}, {msg}" for b, msg in failed.items())
-                    + ". Reduce dt, choose starts nearer the data, or use method='adam' with a smaller "
-                    "learning_rate."
-                )
-            # A broken start is frozen (its values kept for the report) and its slot follows a live
-            # start, so that no NaN enters the batch (a NaN member would keep L-BFGS's line search,
-            # which runs to the slowest member under vmap, going to its bound every iteration).
-            src = jnp.asarray(np.where(alive, np.arange(n_starts), int(np.flatnonzero(alive)[0])))
-            theta = new_theta[src]
-            state = jax.tree_util.tree_map(lambda a: a[src], new_state)
-            run_starts = {n: v[src] for n, v in run_starts.items()}
-            value = np.where(alive, value, np.nan)
-            history.append(value)
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(loss=f"{np.nanmin(value):.3e}")
-            live = value[alive]
-            if np.all(live < tol) or (  # converged, or no start improved by 1e-9 in 3 iterations
-                len(history) > 3 and np.all(np.abs(history[-4][alive] - live) <= 1e-9 * live)
-            ):
-                break
-    finally:
+    for it in range(1, iterations + 1):
+        new_theta, new_state, value = update_all(theta, state, run_start, run_data)
+        value = np.asarray(value)
+        broke = alive & ~(np.isfinite(value) & np.all(np.isfinite(np.asarray(new_theta)), axis=1))
+        for b in np.flatnonzero(broke):  # say why, from a plain run at that start's trial values
+            why = model.why(model.physical(np.asarray(run_start[b]), np.asarray(theta[b])))[0]
+            failed[int(b)] = f"iteration {it}: {why}"
+            frozen[int(b)] = np.asarray(theta[b])
+        alive &= ~broke
+        if not alive.any():
+            break
+        # A broken start is frozen (its values kept for the report) and its slot follows a live
+        # start, so that no NaN enters the batch (a NaN member would keep L-BFGS's line search,
+        # which runs to the slowest member under vmap, going to its bound every iteration).
+        src = jnp.asarray(np.where(alive, np.arange(B), int(np.flatnonzero(alive)[0])))
+        theta = new_theta[src]
+        state = jax.tree_util.tree_map(lambda a: a[src], new_state)
+        run_start, run_data = run_start[src], run_data[src]
+        value = np.where(alive, value, np.nan)
+        history.append(value)
         if bar is not None:
-            bar.close()
-    final = np.where(alive, np.asarray(jax.jit(jax.vmap(loss_fn))(theta, run_starts)), np.nan)
-    history.append(final)
-    wall = time.perf_counter() - t0
+            bar.update(1)
+            bar.set_postfix(loss=f"{np.nanmin(value):.3e}")
+        live = value[alive]
+        if np.all(live < tol) or (  # converged, or no start improved by 1e-9 in 3 iterations
+            len(history) > 3 and np.all(np.abs(history[-4][alive] - live) <= 1e-9 * live)
+        ):
+            break
     theta = np.array(theta)
     for b, th in frozen.items():
         theta[b] = th
-    fitted_all = physical(jnp.asarray(theta), start_vals)  # live slots kept their own starts
-    best = int(np.nanargmin(final))
-    return Fit(
-        fitted={n: float(v[best]) for n, v in fitted_all.items()},
-        loss=float(final[best]),
-        iterations=it,
+    # live slots kept their own starts and data; the final point's residuals and Jacobian
+    r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
+    ok &= alive
+    state = np.where(ok, "iterations", "failed").astype(object)
+    for b in np.flatnonzero(alive & ~ok):
+        failed[int(b)] = f"at its final point: {model.why(model.physical(start_theta[b], theta[b]))[0]}"
+    history.append(np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan))
+    return dict(
+        theta=theta,
+        r=r,
+        J=J,
+        state=state,
+        failed=failed,
+        rejected=[],
         history=np.stack(history),
-        starts_fitted=fitted_all,
-        failed_starts=failed,
+        iterations=it,
+    )
+
+
+def _finish(
+    model, run, start_theta, data, L, wall, method, noise, max_correlation, max_relative_std, warn=True
+):
+    """The ``Fit`` of a finished run: the best start, its uncertainty, and what to warn of or refuse
+    (``warn=False``, for a batch of fits: no warning issued, a blocked fit's reason in ``warning``)."""
+    names = model.names
+    state, failed = run["state"], run["failed"]
+    final = run["history"][-1]
+    if np.all(state == "failed"):
+        raise CalibrationError(
+            "calibrate: every start broke down: "
+            + "; ".join(f"start {b}, {msg}" for b, msg in sorted(failed.items()))
+            + ". Reduce dt, choose starts nearer the data, or raise pad if the slab leaves the grid."
+        )
+    best = int(np.nanargmin(np.where(state == "failed", np.nan, final)))
+    theta = run["theta"]
+    phys_all = model.physical(start_theta, theta)
+    fitted = {n: float(phys_all[best, i]) for i, n in enumerate(names)}
+    r, J = run["r"][best], run["J"][best]
+    if method != "lm" and state[best] == "iterations":
+        state[best] = _optax_converged(model, theta[best], start_theta[best], data[best], r, J)
+    blocked = None
+    if state[best] == "blocked":
+        blocked = _blocked_message(model, run, best, fitted, final[best])
+        if warn:
+            raise CalibrationError(blocked)
+    u = uncertainty(model.scene, names, fitted, r, J_theta=J, noise=noise, offs=model.offsets)
+    at_fit = type(model.scene)(**{**model.scene.parameter_values(), **fitted})
+    warning = identifiability(
+        at_fit,
+        u,
+        np.asarray(model.t_data),
+        max_correlation=max_correlation,
+        max_relative_std=max_relative_std,
+    )
+    if state[best] in ("iterations", "stalled"):
+        why = (
+            f"the fit did not converge in {run['iterations']} iterations"
+            if state[best] == "iterations"
+            else "the fit stalled (no trial step lowered the loss)"
+        )
+        more = f"{why} (loss {final[best]:.6g}): raise iterations, or start nearer the data"
+        warning = more if warning is None else f"{more}; and {warning}"
+    if blocked is not None:
+        warning = blocked if warning is None else f"{blocked}; and {warning}"
+    if warning is not None and warn:
+        warnings.warn(warning, CalibrationWarning, stacklevel=3)
+    return Fit(
+        fitted=fitted,
+        loss=float(final[best]),
+        iterations=int(run["iterations"]),
+        history=run["history"],
+        starts_fitted={n: phys_all[:, i].copy() for i, n in enumerate(names)},
         wall_s=wall,
+        failed_starts=dict(failed),
+        method=method,
+        converged=bool(state[best] == "converged"),
+        names=names,
+        std=u["std"],
+        covariance=u["covariance"],
+        covariance_theta=u["covariance_theta"],
+        correlation=u["correlation"],
+        condition=u["condition"],
+        sigma=u["sigma"],
+        noise_given=noise is not None,
+        weakest=u["weakest"],
+        warning=warning,
+        offsets=dict(model.offsets),
+        rejected=list(run["rejected"]),
+        residuals=np.asarray(r),
     )
 
 
-def _why(scene, interpolator, trial, t_data, dt, simulate_kwargs) -> str:
-    """What broke in a plain run at ``trial`` (the step, particle and quantity), for a message."""
-    sc = type(scene)(**{**scene.parameter_values(), **trial})
-    steps = int(np.ceil(float(np.max(np.asarray(t_data))) / float(dt) - 1e-9))
-    sol = simulate(sc, interpolator, dt=dt, steps=steps, throw=False, **simulate_kwargs)
-    f = sol.failure()
-    where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
-    if f is None:
-        return f"the loss at {where} is not finite"
-    return f"the run at {where} broke down at step {f['step']}, particle {f['particle']}: " + "; ".join(
-        f["quantities"]
+def _optax_converged(model, theta, start_theta, data, r, J) -> str:
+    """After L-BFGS or Adam: ``"converged"`` if a Gauss-Newton step would gain less than 1e-6 of the
+    cost; else try it (capped at 0.5 in ``theta``), then a quarter and a sixteenth of it: ``"blocked"``
+    if every one of their runs breaks down, ``"iterations"`` if not."""
+    step = _gauss_newton_step(r, J)
+    cost = 0.5 * float(r @ r)
+    if -0.5 * float((J.T @ r) @ step) <= 1e-6 * cost:
+        return "converged"
+    for factor in (1.0, 0.25, 0.0625):
+        _, ok = model.residuals((theta + factor * step)[None], start_theta[None], data[None])
+        if ok[0]:
+            return "iterations"
+    return "blocked"
+
+
+def _gauss_newton_step(r, J, cap=0.5):
+    """The Gauss-Newton step in ``theta``, shortened to at most ``cap`` in every component."""
+    step = -np.linalg.lstsq(J.T @ J, J.T @ r, rcond=None)[0]
+    big = float(np.max(np.abs(step)))
+    return step * (cap / big) if big > cap else step
+
+
+def _blocked_message(model, run, best, fitted, loss) -> str:
+    where = ", ".join(f"{k}={v:.6g}" for k, v in fitted.items())
+    broken = [e for e in run["rejected"] if e["start"] == best and e["broke"]]
+    if broken and "why" not in broken[-1]:
+        broken[-1]["why"], broken[-1]["failure"] = model.why(np.array(list(broken[-1]["values"].values())))
+    if broken:
+        why, failure = broken[-1]["why"], broken[-1].get("failure")
+        values = broken[-1]["values"]
+    else:  # an L-BFGS or Adam fit: the Gauss-Newton step from the best point is the broken trial
+        theta = run["theta"][best]
+        step = 0.0625 * _gauss_newton_step(run["r"][best], run["J"][best])
+        start = np.log(np.array(list(fitted.values())) - model.off) - theta
+        phys = model.physical(start, theta + step)
+        why, failure = model.why(phys)
+        values = dict(zip(model.names, (float(v) for v in phys)))
+    advice = "choose starts nearer the data, or reduce dt"
+    if failure is not None and failure["status"] & LEFT_GRID:
+        scene = model.scene
+        sc = type(scene)(**{**scene.parameter_values(), **values})
+        reach = sc.max_reach() if hasattr(sc, "max_reach") else None
+        if reach is not None and pad_for(scene, 1.1 * reach) > scene.pad:
+            advice = (
+                f"raise pad (now {scene.pad}): the slab can reach x = {reach:.4g} at those values; "
+                f"pad >= {pad_for(scene, 1.1 * reach)} holds it"
+            )
+        else:  # the particles' stencils, not the slab's extent, reach past the grid
+            advice = f"raise pad (now {scene.pad}), e.g. to {int(np.ceil(1.5 * scene.pad))}"
+    return (
+        f"calibrate: the fit cannot reach its best point: it stopped at {where} (loss {loss:.6g}), and "
+        f"every step toward a lower loss is a run that breaks down; the last: {why}. To go on, {advice}."
     )
 
 
-def to_physical_batch(to_physical: Callable, theta: jax.Array, start_vals: dict) -> dict:
-    """Every start's physical values from its ``theta``.
+def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> dict:
+    """The Gauss-Newton uncertainty at a fitted point.
 
     Args:
-        to_physical: the change of variables ``(theta, start) -> {name: value}``.
-        theta: one row of ``theta`` per start.
-        start_vals: name to the start values, one per start.
+        scene: the scene (for ``offsets``).
+        names: the fitted names.
+        fitted: name to the fitted value.
+        r: residuals ``x_model - x_data``, ``(n,)``.
+        J_theta: ``d r / d theta``, ``(n, p)``, ``theta = ln(p - p_off)``.
+        noise: the measurement noise; ``None``: ``sigma^2 = sum r^2 / (n - p)``.
+        offs: name to ``p_off`` (default: ``offsets(scene, names)``).
 
     Returns:
-        Name to the physical values, one per start.
+        A dict: ``std`` (name to the standard error), ``covariance``, ``covariance_theta``,
+        ``correlation``, ``condition``, ``sigma``, ``weakest`` (name to the component of the weakest
+        direction in ``d ln p``), ``strongest`` (the best-determined one), ``relative_std`` (name to
+        ``std / |value|``). Standard errors are ``inf`` where ``J^T J`` is singular, NaN when the
+        noise cannot be estimated (``n <= p`` and no ``noise``).
     """
-    return jax.vmap(to_physical)(theta, start_vals)
+    names = tuple(names)
+    offs = offsets(scene, names) if offs is None else offs
+    r, Jt = np.asarray(r, float), np.asarray(J_theta, float)
+    n, p = Jt.shape
+    value = np.array([fitted[k] for k in names])
+    D = value - np.array([offs[k] for k in names])  # d p / d theta
+    if noise is not None:
+        sigma = float(noise)
+    elif n > p:
+        sigma = float(np.sqrt(r @ r / (n - p)))
+    else:
+        sigma = float("nan")
+    A = Jt.T @ Jt
+    J_rel = Jt * (value / D)  # d r / d ln p
+    w, V = np.linalg.eigh(J_rel.T @ J_rel)
+    condition = float(w[-1] / w[0]) if w[0] > 0 else float("inf")
+    if w[0] > 1e-14 * max(w[-1], 1e-300):
+        C_theta = sigma**2 * np.linalg.inv(A)
+    else:
+        C_theta = np.full((p, p), np.inf)
+    C_phys = C_theta * np.outer(D, D)
+    std = np.sqrt(np.abs(np.diag(C_phys)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s_theta = np.sqrt(np.diag(C_theta))
+        corr = C_theta / np.outer(s_theta, s_theta)
+    weakest, strongest = V[:, 0], V[:, -1]
+    weakest = weakest * np.sign(weakest[np.argmax(np.abs(weakest))])
+    strongest = strongest * np.sign(strongest[np.argmax(np.abs(strongest))])
+    return dict(
+        std={k: float(s) for k, s in zip(names, std)},
+        relative_std={k: float(s / abs(v)) for k, s, v in zip(names, std, value)},
+        covariance=C_phys,
+        covariance_theta=C_theta,
+        correlation=corr,
+        condition=condition,
+        sigma=sigma,
+        weakest={k: float(c) for k, c in zip(names, weakest)},
+        strongest={k: float(c) for k, c in zip(names, strongest)},
+        eigenvalues=w,
+    )
+
+
+def identifiability(
+    scene, u: dict, t_data, *, max_correlation=MAX_CORRELATION, max_relative_std=MAX_RELATIVE_STD
+) -> str | None:
+    """Whether the data determine the fitted constants, in words (``None``: they do).
+
+    Args:
+        scene: the scene, at the fitted values (or the model's, for the gas slab's turnaround).
+        u: what ``uncertainty`` returned.
+        t_data: the observation times.
+        max_correlation: the largest acceptable magnitude of a correlation.
+        max_relative_std: the largest acceptable relative standard error.
+
+    Returns:
+        ``None``, or a sentence: which bound is crossed, the combination the data fix and the
+        direction they cannot see, and what to observe (for the gas slab observed only before its
+        first turnaround: how long).
+    """
+    names = tuple(u["std"])
+    p = len(names)
+    rel = u["relative_std"]
+    corr = np.asarray(u["correlation"])
+    problems = []
+    if not np.isfinite(u["sigma"]):
+        return (
+            f"the noise cannot be estimated from {np.asarray(t_data).size} observations for {p} "
+            "constants: give noise, or observe more often"
+        )
+    pairs = [
+        (abs(float(corr[i, j])), names[i], names[j])
+        for i in range(p)
+        for j in range(i + 1, p)
+        if not np.isfinite(corr[i, j]) or abs(float(corr[i, j])) > max_correlation
+    ]
+    for c, a, b in pairs:
+        problems.append(f"{a} and {b} are correlated {c:.4f} (beyond {max_correlation:g})")
+    loose = [k for k in names if not rel[k] <= max_relative_std]
+    if loose:
+        problems.append(
+            "relative standard error "
+            + ", ".join(f"{k} {100 * rel[k]:.3g}%" for k in loose)
+            + f" (above {100 * max_relative_std:g}%)"
+        )
+    if not problems:
+        return None
+    weak = u["weakest"]
+    see = " : ".join(f"{weak[k]:.3g}" for k in names)
+    text = (
+        "the data do not determine the constants: "
+        + "; ".join(problems)
+        + f". The loss barely changes along d ln {' : d ln '.join(names)} = {see}"
+    )
+    if p >= 2:
+        s = u["strongest"]
+        top = max(names, key=lambda k: abs(s[k]))
+        combo = " ".join([top] + [f"{k}^{s[k] / s[top]:.3g}" for k in names if k != top])
+        text += f"; they fix the combination {combo} best"
+    t_end = float(np.max(np.asarray(t_data)))
+    if hasattr(scene, "turnaround_estimate"):
+        t_turn = scene.turnaround_estimate()
+        if t_end < t_turn:
+            text += (
+                f". The data end at t = {t_end:.4g}, before the free surface's first turnaround "
+                f"(t ~ {t_turn:.3g} at the fitted values): observe past it, to t ~ {1.5 * t_turn:.3g}"
+            )
+            return text
+    return text + ". Observe longer or more often, measure with less noise, or fit fewer constants"
+
+
+@dataclasses.dataclass
+class Information:
+    """The Fisher information of an observation plan: the free-surface position at times ``ts``, each
+    with Gaussian noise ``noise``, at given constants. Sub-plans (an earlier end, fewer samples, other
+    noise) come from the same Jacobian.
+
+    Attributes:
+        names: the constants, the order of the matrices.
+        values: their values.
+        ts: the plan's times.
+        jacobian: ``d x_R(t_i) / d p_j``, ``(len(ts), p)``, physical units.
+        noise: the plan's noise level.
+    """
+
+    names: tuple
+    values: dict
+    ts: np.ndarray
+    jacobian: np.ndarray
+    noise: float
+
+    def _rows(self, t_end, samples):
+        idx = np.flatnonzero(self.ts <= (np.inf if t_end is None else t_end * (1 + 1e-12)))
+        if samples is not None:
+            check_int("samples", samples, 2)
+            if samples < idx.size:
+                idx = idx[np.round(np.linspace(0, idx.size - 1, samples)).astype(int)]
+        return idx
+
+    def fisher(self, t_end: float | None = None, samples: int | None = None, noise: float | None = None):
+        """The Fisher information ``J^T J / noise^2`` of the plan (or of its part up to ``t_end``,
+        thinned to ``samples`` evenly spread times, at another ``noise``).
+
+        Args:
+            t_end: the end of the observation window (``None``: the whole plan).
+            samples: how many of the window's times to keep, evenly spread (``None``: all).
+            noise: the noise level (``None``: the plan's).
+
+        Returns:
+            ``(p, p)``, physical units.
+        """
+        s = self.noise if noise is None else float(noise)
+        check_positive("noise", s)
+        J = self.jacobian[self._rows(t_end, samples)]
+        return J.T @ J / s**2
+
+    def std(self, t_end: float | None = None, samples: int | None = None, noise: float | None = None) -> dict:
+        """The standard errors a fit of this plan would have (Cramer-Rao): ``sqrt(diag(I^-1))``.
+
+        Args:
+            t_end: the end of the observation window (``None``: the whole plan).
+            samples: how many of the window's times to keep (``None``: all).
+            noise: the noise level (``None``: the plan's).
+
+        Returns:
+            Name to the expected standard error (``inf`` when the plan cannot determine it).
+        """
+        info = self.fisher(t_end, samples, noise)
+        w = np.linalg.eigvalsh(info)
+        if not w[0] > 1e-14 * max(w[-1], 1e-300):
+            return {k: float("inf") for k in self.names}
+        return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(np.linalg.inv(info))))}
+
+    def correlation(self, t_end: float | None = None, samples: int | None = None) -> np.ndarray:
+        """The correlation matrix a fit of this plan would have (independent of the noise level).
+
+        Args:
+            t_end: the end of the observation window.
+            samples: how many of the window's times to keep.
+
+        Returns:
+            ``(p, p)``.
+        """
+        C = np.linalg.inv(self.fisher(t_end, samples, 1.0))
+        s = np.sqrt(np.diag(C))
+        return C / np.outer(s, s)
+
+
+def information(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    ts,
+    fit: Sequence[str] = ("gamma", "P0"),
+    *,
+    dt,
+    noise: float = 1.0,
+    **simulate_kwargs,
+) -> Information:
+    """The Fisher information of observing the free surface at ``ts``, at the scene's constants.
+
+    One forward-mode Jacobian through one run: before any experiment, it says how well a plan (how
+    long, how often, how precisely) would determine each constant.
+
+    Args:
+        scene: the scene, at the constants expected.
+        interpolator: the MPM method of the model.
+        ts: the plan's observation times (``>= 0``, increasing).
+        fit: the constants to determine.
+        dt: the model's time step.
+        noise: the measurement noise (standard deviation, units of ``x``).
+        **simulate_kwargs: passed to ``simulate``.
+
+    Returns:
+        An ``Information``: ``fisher()``, ``std()``, ``correlation()``, for the plan or part of it.
+
+    Raises:
+        ValueError: bad names, times or noise.
+        CalibrationError: the run at the scene's constants breaks down.
+    """
+    names = tuple(fit)
+    _check_names(scene, names)
+    check_positive("noise", noise)
+    ts = np.asarray(ts, dtype=float)
+    if ts.ndim != 1 or ts.size < 1 or ts[0] < 0 or np.any(np.diff(ts) <= 0):
+        raise ValueError("ts must be a 1D array of times from >= 0, increasing")
+    model = _Model(scene, interpolator, names, jnp.asarray(ts, dtype=scene.h.dtype), dt, simulate_kwargs)
+    value = np.array([float(getattr(scene, n)) for n in names])
+    start_theta = np.log(value - model.off)[None]
+    r, J, ok = model.residuals_and_jacobian(np.zeros((1, len(names))), start_theta, np.zeros((1, ts.size)))
+    if not ok[0]:
+        raise CalibrationError(f"information: {model.why(value)[0]}")
+    J_phys = J[0] / (value - model.off)
+    return Information(
+        names=names, values=dict(zip(names, value.tolist())), ts=ts, jacobian=J_phys, noise=float(noise)
+    )
+
+
+def profile(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    t_data,
+    x_data,
+    fit: Fit,
+    alphas,
+    *,
+    dt,
+    direction: dict | None = None,
+    **simulate_kwargs,
+) -> dict:
+    """The loss along a direction through a fit's best point, all points in one ``vmap``-ed call.
+
+    The points are ``ln p = ln p_fit + alpha * d`` (``d``: ``fit.weakest`` by default, a unit vector in
+    ``d ln p``), so ``alpha = 0.1`` moves about 10% along it. A short window shows a valley (the loss
+    hardly changes), a long one a bowl.
+
+    Args:
+        scene: the model's scene.
+        interpolator: the MPM method of the model.
+        t_data: the observation times.
+        x_data: the observed positions.
+        fit: the fit (its ``fitted`` values and ``weakest`` direction).
+        alphas: the steps along the direction.
+        dt: the model's time step.
+        direction: name to component in ``d ln p`` (default ``fit.weakest``).
+        **simulate_kwargs: passed to ``simulate``.
+
+    Returns:
+        A dict: ``alpha``, ``loss`` (NaN where the run broke down, and ``ok`` False there), ``ok``, and
+        each name to its values along the line.
+    """
+    names = tuple(fit.fitted)
+    direction = fit.weakest if direction is None else direction
+    d = np.array([float(direction.get(n, 0.0)) for n in names])
+    alphas = np.asarray(alphas, dtype=float).reshape(-1)
+    t_data, x_data = _check_data(scene, t_data, x_data)
+    values = np.array([fit.fitted[n] for n in names]) * np.exp(alphas[:, None] * d[None, :])
+    model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
+    _check_starts(names, model.off, values)
+    start_theta = np.log(values - model.off)
+    data = np.broadcast_to(np.asarray(x_data), (alphas.size, x_data.shape[0]))
+    r, ok = model.residuals(np.zeros_like(start_theta), start_theta, data)
+    loss = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), float(scene.length)), np.nan)
+    return dict(alpha=alphas, loss=loss, ok=ok, **{n: values[:, i] for i, n in enumerate(names)})
 
 
 def _bar(progress, total):

@@ -91,28 +91,36 @@ def test_calibration_with_one_percent_noise_and_several_starts(synthetic):
 
 def test_adam_keeps_parameters_physical_and_descends(synthetic):
     sc, dt, x = synthetic
-    fit = cal.calibrate(
-        jm.GasSlab(**SLAB),
-        jm.CPDI(),
-        TS,
-        x,
-        starts=dict(gamma=1.05, P0=1.2e5),  # near the edges of the admissible ranges
-        dt=dt,
-        method="adam",
-        iterations=15,
-        learning_rate=0.1,
-        progress=False,
-    )
+    with pytest.warns(cal.CalibrationWarning, match="did not converge in 15 iterations"):
+        fit = cal.calibrate(
+            jm.GasSlab(**SLAB),
+            jm.CPDI(),
+            TS,
+            x,
+            starts=dict(gamma=1.05, P0=1.2e5),  # near the edges of the admissible ranges
+            dt=dt,
+            method="adam",
+            iterations=15,
+            learning_rate=0.1,
+            progress=False,
+        )
     assert fit.fitted["gamma"] > 1.0 and fit.fitted["P0"] > 1.0e5
     assert fit.history[-1, 0] < fit.history[0, 0]
+    assert not fit.converged and fit.warning.startswith("the fit did not converge")
 
 
 def test_calibration_reports_a_broken_trial_and_bad_input(synthetic):
     sc, dt, x = synthetic
     with pytest.raises(
-        cal.CalibrationError, match="every start broke down: start 0, iteration 1: the run at"
+        cal.CalibrationError, match="every start broke down: start 0, at its start: the run at"
     ):
         cal.calibrate(jm.GasSlab(**SLAB), jm.CPDI(), TS, x, dt=20 * dt, iterations=2, progress=False)
+    with pytest.raises(
+        cal.CalibrationError, match="every start broke down: start 0, iteration 1: the run at"
+    ):
+        cal.calibrate(
+            jm.GasSlab(**SLAB), jm.CPDI(), TS, x, dt=20 * dt, iterations=2, method="adam", progress=False
+        )
     with pytest.raises(ValueError, match="method must be"):
         cal.calibrate(jm.GasSlab(**SLAB), jm.CPDI(), TS, x, dt=dt, method="sgd")
     with pytest.raises(ValueError, match="not fitted"):

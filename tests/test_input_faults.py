@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import usage
 
 import jaxmpm as jm
 import jaxmpm._memory
@@ -16,18 +17,6 @@ from jaxmpm import calibrate as cal
 from jaxmpm.cli import main
 
 TS = np.linspace(0.0, 12e-3, 60)
-
-
-def usage(capsys, argv, match):
-    """Run ``jaxmpm argv``: exit status 2, nothing on stdout, one line on stderr with ``match``."""
-    rc = main(argv)
-    captured = capsys.readouterr()
-    assert rc == 2, (argv, captured.err)
-    assert "Traceback" not in captured.err and captured.out == ""
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1, (argv, captured.err)
-    assert lines[0].startswith("jaxmpm: error:") and match in lines[0], lines[0]
-    return lines[0]
 
 
 @pytest.fixture

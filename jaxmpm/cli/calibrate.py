@@ -4,12 +4,14 @@ import csv
 import io
 import math
 import sys
+import warnings
 
 import numpy as np
 
 import jaxmpm as jm
 from jaxmpm._checks import check_positive
 from jaxmpm._simulate import prepare
+from jaxmpm.scenes.gas_slab import pad_for
 
 from . import _assign
 from ._common import UsageError, print_json
@@ -30,9 +32,28 @@ def add_parser(subparsers) -> None:
     p.add_argument("--fit", default="gamma,P0", metavar="NAME[,NAME...]", help="parameters to fit")
     p.add_argument("--start", metavar="NAME=V[,NAME=V...]", help="start values (default: the scene's)")
     p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
-    p.add_argument("--method", default="lbfgs", choices=["lbfgs", "adam"])
+    p.add_argument(
+        "--method", default="lm", choices=list(jm.calibrate.METHODS), help="lm: Levenberg-Marquardt (default)"
+    )
     p.add_argument("--iterations", type=int, default=50, help="the most iterations (50)")
     p.add_argument("--dt", type=float, help="model time step (default: CFL 0.2 at the start values)")
+    p.add_argument(
+        "--noise", type=float, metavar="SIGMA", help="noise of x_free (default: estimated from the residuals)"
+    )
+    p.add_argument(
+        "--max-correlation",
+        type=float,
+        default=jm.calibrate.MAX_CORRELATION,
+        metavar="C",
+        help="warn when two constants correlate beyond C (0.99)",
+    )
+    p.add_argument(
+        "--max-relative-std",
+        type=float,
+        default=jm.calibrate.MAX_RELATIVE_STD,
+        metavar="R",
+        help="warn when a standard error exceeds R times its value (0.1)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=command)
@@ -199,33 +220,51 @@ def command(args) -> int:
         start_scene = type(scene)(**{**scene.parameter_values(), **start})
     except ValueError as e:
         raise UsageError(f"--start: {e}") from None
-    if args.dt is not None:
-        try:
-            check_positive("dt", args.dt)
-        except ValueError as e:
-            raise UsageError(str(e)) from None
+    positive = (("--dt", args.dt), ("--noise", args.noise), ("--max-relative-std", args.max_relative_std))
+    for flag, value in positive:
+        if value is not None:
+            try:
+                check_positive(flag, value)
+            except ValueError as e:
+                raise UsageError(str(e)) from None
+    if not 0.0 < args.max_correlation <= 1.0:  # NaN fails too
+        raise UsageError(f"--max-correlation must be a number in (0, 1], got {args.max_correlation}")
     t, x = read_trajectory(args.data)
+    if "pad" not in given:  # a grid for the data and the start's expansion, with room for trial runs
+        reach = max(float(np.max(x)), start_scene.max_reach())
+        pad = max(scene.pad, pad_for(scene, 1.25 * reach))
+        if pad != scene.pad:
+            scene = type(scene)(**{**scene.parameter_values(), "pad": pad})
     dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / float(start_scene.wave_speed)
     interp = jm.INTERPOLATORS[args.interpolator]()
     _check_model_run(scene, interp, args.data, t, dt)
     try:
-        fit = jm.calibrate.calibrate(
-            scene,
-            interp,
-            t,
-            x,
-            fit=names,
-            starts=start,
-            dt=dt,
-            method=args.method,
-            iterations=args.iterations,
-            progress=False if args.no_progress else None,
-        )
+        with warnings.catch_warnings():  # the library's warning is printed once, below
+            warnings.simplefilter("ignore", jm.calibrate.CalibrationWarning)
+            fit = jm.calibrate.calibrate(
+                scene,
+                interp,
+                t,
+                x,
+                fit=names,
+                starts=start,
+                dt=dt,
+                method=args.method,
+                iterations=args.iterations,
+                noise=args.noise,
+                max_correlation=args.max_correlation,
+                max_relative_std=args.max_relative_std,
+                progress=False if args.no_progress else None,
+            )
     except ValueError as e:
         raise UsageError(str(e)) from None
     except jm.calibrate.CalibrationError as e:
         print(f"jaxmpm: {e}", file=sys.stderr)
         return 3
+
+    def matrix(m):
+        return {a: {b: _number(m[i, j]) for j, b in enumerate(fit.names)} for i, a in enumerate(fit.names)}
+
     out = dict(
         fitted=fit.fitted,
         loss=fit.loss,
@@ -235,12 +274,38 @@ def command(args) -> int:
         interpolator=args.interpolator,
         method=args.method,
         dt=dt,
+        pad=scene.pad,
         start={n: float(start.get(n, float(getattr(scene, n)))) for n in names},
         loss_history=[float(v) for v in fit.history[:, 0]],
+        converged=fit.converged,
+        std={k: _number(v) for k, v in fit.std.items()},
+        correlation=matrix(fit.correlation),
+        condition=_number(fit.condition),
+        covariance=matrix(fit.covariance),
+        covariance_theta=matrix(fit.covariance_theta),
+        offsets=fit.offsets,
+        sigma=_number(fit.sigma),
+        noise=args.noise,
+        weakest=fit.weakest,
+        warning=fit.warning,
+        rejected_trials=len(fit.rejected),
+        failed_starts={str(k): v for k, v in fit.failed_starts.items()},
     )
     if args.json:
         print_json(out)
     else:
         print("fitted: " + "  ".join(f"{k}={v:.10g}" for k, v in fit.fitted.items()))
-        print(f"loss={fit.loss:.6g}  iterations={fit.iterations}  wall_s={fit.wall_s:.3f}  dt={dt:.6g}")
+        print("std:    " + "  ".join(f"{k}={v:.3g}" for k, v in fit.std.items()))
+        print(
+            f"loss={fit.loss:.6g}  iterations={fit.iterations}  wall_s={fit.wall_s:.3f}  dt={dt:.6g}  "
+            f"pad={scene.pad}  condition={fit.condition:.3g}"
+        )
+    if fit.warning is not None:
+        print(f"jaxmpm: warning: {fit.warning}", file=sys.stderr)
     return 0
+
+
+def _number(v):
+    """A float for JSON: ``inf`` and NaN as ``null`` (JSON has neither)."""
+    v = float(v)
+    return v if math.isfinite(v) else None

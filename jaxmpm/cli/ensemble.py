@@ -1,6 +1,7 @@
 """``jaxmpm ensemble``: a batch of parameter sets in one compiled, sharded call."""
 
 import itertools
+import json
 import math
 import sys
 import time
@@ -11,6 +12,7 @@ import jaxmpm as jm
 from jaxmpm import _memory
 from jaxmpm._checks import check_int, check_positive
 from jaxmpm._simulate import prepare
+from jaxmpm.scenes.gas_slab import pad_for
 
 from . import _assign
 from ._common import UsageError, print_json
@@ -36,7 +38,12 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
     p.add_argument("params", nargs="*", metavar="name=value", help="fixed scene parameters")
-    p.add_argument("--vary", action="append", required=True, metavar="NAME=LOW:HIGH", help="repeatable")
+    p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH", help="repeatable (or --from-fit)")
+    p.add_argument(
+        "--from-fit",
+        metavar="FIT.json",
+        help="draw the fitted constants from the Gaussian of a `jaxmpm calibrate --json` output",
+    )
     p.add_argument("--members", type=int, required=True, help="members (uniform random in the ranges)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the sample, an integer >= 0 (0)")
     p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
@@ -68,11 +75,23 @@ def command(args) -> int:
     """
     scene = _assign.scene(args.scene, args.params)
     varying = [n for n in jm.sensitivity.continuous_parameters(scene) if n != "dt"]
-    ranges = _assign.ranges(args.vary, varying)
+    ranges = _assign.ranges(args.vary or [], varying)
+    fit = read_fit(args.from_fit, scene, varying) if args.from_fit else None
+    if not ranges and fit is None:
+        raise UsageError(
+            "give the varied parameters: --vary NAME=LOW:HIGH (repeatable), or --from-fit FIT.json"
+        )
     fixed = _assign.names(args.params)
     for k in ranges:
         if k in fixed:
             raise UsageError(f"--vary: {k} is also given as a fixed scene parameter ({k}=...): give it once")
+    bounds = dict(ranges)  # each varied parameter's extent: its range, or 6 standard deviations of a fit
+    if fit is not None:
+        for k in fit["names"]:
+            if k in fixed or k in ranges:
+                how = "a fixed scene parameter" if k in fixed else "varied by --vary"
+                raise UsageError(f"--from-fit: {k} is fitted there and also {how}: give it once")
+        bounds.update(fit["bounds"])
     if args.members < 1:
         raise UsageError(f"--members must be an integer >= 1, got {args.members}")
     if args.seed < 0:
@@ -92,7 +111,7 @@ def command(args) -> int:
         except ValueError as e:
             raise UsageError(str(e)) from None
         speeds = []
-        for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in ranges.items()]):
+        for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in bounds.items()]):
             try:
                 speeds.append(float(type(scene)(**{**scene.parameter_values(), **dict(corner)}).wave_speed))
             except ValueError as e:
@@ -111,6 +130,8 @@ def command(args) -> int:
                 f"{_MOST_STEPS}; give a shorter --t-end or --max-steps"
             )
         timing = dict(t_end=t_end, cfl=args.cfl, max_steps=max_steps)
+    if scene.name == "gas-slab":
+        scene = _size_grid(scene, bounds, timing, fixed)
     interp = jm.INTERPOLATORS[args.interpolator]()
     try:
         model, _, steps, saveat = prepare(scene, interp, **timing, **settings)
@@ -122,6 +143,9 @@ def command(args) -> int:
         raise UsageError(f"--members {args.members}: {e}") from None
     rng = np.random.default_rng(args.seed)
     vary = {k: rng.uniform(lo, hi, args.members) for k, (lo, hi) in ranges.items()}
+    if fit is not None:
+        C = fit["covariance_theta"]
+        vary.update(jm.calibrate.draw(fit["fitted"], fit["offsets"], fit["names"], C, args.members, rng))
     t0 = time.perf_counter()
     try:
         ens = jm.ensemble(scene, interp, vary, **timing, **settings)
@@ -159,6 +183,8 @@ def command(args) -> int:
         failed=int(np.sum(~ens.ok)),
         wall_s=wall,
         timing={k: float(v) if k != "max_steps" and k != "steps" else int(v) for k, v in timing.items()},
+        pad=scene.pad,
+        from_fit=None if fit is None else fit["names"],
         results=results,
     )
     status = 0 if out["ok"] else _all_failed(results)
@@ -197,3 +223,84 @@ def _all_failed(results: list[dict]) -> int:
         file=sys.stderr,
     )
     return 3
+
+
+def _size_grid(scene, bounds: dict, timing: dict, fixed) -> "jm.GasSlab":
+    """The gas slab with a grid that holds every member's free surface to the end of the run.
+
+    The bound is ``GasSlab.max_reach(t_end)`` (energy and escape speed), largest at a corner of the
+    varied parameters' extents (it grows with ``P0`` and ``h`` and falls with ``gamma`` and ``p_atm``).
+    Without ``pad=`` the grid is enlarged to hold it; a given ``pad=`` is kept (members that leave its
+    grid are reported as failures).
+    """
+    t_end = timing["t_end"] if "t_end" in timing else timing["dt"] * timing["steps"]
+    reach, widest = 0.0, scene
+    for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in bounds.items()]):
+        sc = type(scene)(**{**scene.parameter_values(), **dict(corner)})
+        if sc.max_reach(t_end) > reach:
+            reach, widest = sc.max_reach(t_end), sc
+    need = pad_for(widest, 1.05 * reach)
+    if need <= scene.pad or "pad" in fixed:
+        return scene
+    return type(scene)(**{**scene.parameter_values(), "pad": need})
+
+
+def read_fit(path: str, scene, allowed) -> dict:
+    """What ``--from-fit`` draws from: the output of ``jaxmpm calibrate --json``.
+
+    Args:
+        path: the JSON file.
+        scene: the ensemble's scene (the fit's ``scene`` must name it).
+        allowed: the parameters that may vary.
+
+    Returns:
+        A dict: ``names``, ``fitted``, ``offsets``, ``covariance_theta`` (an array) and ``bounds`` (name
+        to the physical values at 6 standard deviations either side, for the time step and the grid).
+
+    Raises:
+        UsageError: the file cannot be read, is not such JSON, names another scene or parameters
+            that cannot vary, or has no finite, positive semi-definite covariance.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            obj = json.load(f)
+    except OSError as e:
+        raise UsageError(f"--from-fit: cannot read {path}: {e.strerror or e}") from None
+    except (ValueError, UnicodeDecodeError):
+        raise UsageError(
+            f"--from-fit: {path} is not JSON (the output of `jaxmpm calibrate --json`)"
+        ) from None
+    keys = ("fitted", "covariance_theta", "offsets")
+    if not isinstance(obj, dict) or not all(isinstance(obj.get(k), dict) for k in keys):
+        raise UsageError(
+            f"--from-fit: {path} is not the output of `jaxmpm calibrate --json` (it needs {', '.join(keys)})"
+        )
+    if obj.get("scene", scene.name) != scene.name:
+        raise UsageError(f"--from-fit: {path} is a fit of {obj['scene']!r}, not of {scene.name!r}")
+    names = list(obj["fitted"])
+    for k in names:
+        if k not in allowed:
+            raise UsageError(f"--from-fit: {k!r} is not a continuous parameter of {scene.name}")
+    try:
+        fitted = {k: float(obj["fitted"][k]) for k in names}
+        offs = {k: float(obj["offsets"][k]) for k in names}
+        C = np.array([[float(obj["covariance_theta"][a][b]) for b in names] for a in names])
+    except (KeyError, TypeError, ValueError):
+        raise UsageError(
+            f"--from-fit: {path} has no finite covariance for {', '.join(names)} (null where the data do "
+            "not determine the constants; see its warning)"
+        ) from None
+    finite = all(math.isfinite(v) for v in [*fitted.values(), *offs.values()]) and np.all(np.isfinite(C))
+    if not finite or any(fitted[k] <= offs[k] for k in names):
+        raise UsageError(
+            f"--from-fit: {path}: fitted values, offsets and covariance must be finite, fitted > offset"
+        )
+    w = np.linalg.eigvalsh(0.5 * (C + C.T))
+    if not np.allclose(C, C.T, rtol=1e-9, atol=0) or w[0] < -1e-12 * max(abs(w[-1]), 1e-300):
+        raise UsageError(f"--from-fit: {path}: covariance_theta is not symmetric positive semi-definite")
+    sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+    bounds = {
+        k: tuple(offs[k] + (fitted[k] - offs[k]) * math.exp(z * sd[i]) for z in (-6.0, 6.0))
+        for i, k in enumerate(names)
+    }
+    return dict(names=names, fitted=fitted, offsets=offs, covariance_theta=C, bounds=bounds)
