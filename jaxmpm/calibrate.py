@@ -972,8 +972,9 @@ def identifiability(
         for j in range(i + 1, p)
         if not np.isfinite(corr[i, j]) or abs(float(corr[i, j])) > max_correlation
     ]
-    for c, a, b in pairs:
-        problems.append(f"{a} and {b} are correlated {c:.4f} (beyond {max_correlation:g})")
+    for c, a, b in pairs:  # enough digits to tell the correlation from 1
+        digits = 4 if not c < 1.0 else min(8, max(4, int(-np.log10(1.0 - c)) + 2))
+        problems.append(f"{a} and {b} are correlated {c:.{digits}f} (beyond {max_correlation:g})")
     loose = [k for k in names if not rel[k] <= max_relative_std]
     if loose:
         problems.append(

@@ -66,7 +66,6 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm study multid --out": "the full 2D and 3D study",
     "jaxmpm bench --out": "the full benchmark",
     "jaxmpm run axis-aligned dim=3": "a 3D run of 4,096 particles: its compilation",
-    "jaxmpm calibrate gas-slab": "a fit by gradients through whole runs",
     "python:docs/calibration.md": "a fit by gradients through whole runs, and a 1,024-member ensemble",
 }
 OPT_IN = LONG
