@@ -40,6 +40,24 @@ EXPORTS = {
         "truth": "truth",
         "fitted": "{k: float(v) for k, v in fit.fitted.items()}",
         "converged": "[(n, float(gm), float(p)) for n, gm, p, _ in rows]",
+        "std": "fit.std",
+        "correlation": "float(fit.correlation[0, 1])",
+        "expected_std": "{f'{1e3 * t:g}': s for t, s in expected.items()}",
+        "expected_correlation": "[corr_short, corr_long]",
+        "expected_as_data": "as_data",
+        "t_turn": "t_turn",
+        "t_peak": "t_peak",
+        "short_warning": "fit_short.warning",
+        "long_warning": "fit_long.warning",
+        "short_correlation": "float(fit_short.correlation[0, 1])",
+        "profile_ok": "{k: bool(p['ok'].all()) for k, p in profiles.items()}",
+        "rise": "rise",
+        "members": "members",
+        "failures": "len(ens.failures())",
+        "inside_data": "inside_data",
+        "width_data": "width_data",
+        "width_after": "width_after",
+        "ensemble_start": "float(np.max(np.abs(x_free[:, 0] - 1.0)))",
     },
     "ensembles.ipynb": {
         "members": "members",
@@ -102,6 +120,36 @@ def test_calibration_notebook(monkeypatch):
     # fitted to the converged reference, the constants approach the truth as the grid is refined
     (_, g8, p8), (_, g16, p16) = out["converged"]
     assert abs(g16 / 1.4 - 1) < abs(g8 / 1.4 - 1) or abs(p16 / 3e5 - 1) < abs(p8 / 3e5 - 1)
+    # the fit's standard errors: about half a per cent, and the truth within 3 of them
+    for k, v in out["truth"].items():
+        assert 0 < out["std"][k] < 0.02 * v
+        assert abs(out["fitted"][k] - v) < 3 * out["std"][k]
+    assert 0.9 < out["correlation"] < 0.99
+    # experiment design at the truth: a window past the turnaround (12 ms) determines gamma tens of
+    # times better than one that ends before it (3 ms), where gamma and P0 are all but one combination
+    e = out["expected_std"]
+    assert e["3"]["gamma"] > e["6"]["gamma"] > e["12"]["gamma"] > 0
+    assert e["3"]["gamma"] > 20 * e["12"]["gamma"] and e["3"]["P0"] > 5 * e["12"]["P0"]
+    c_short, c_long = out["expected_correlation"]
+    assert abs(c_short) > 0.99 > abs(c_long)
+    # and it predicts the standard errors the fit of section 1 reports, before any data
+    for k in out["truth"]:
+        assert out["expected_as_data"][k] == pytest.approx(out["std"][k], rel=0.1)
+    # the turnaround estimate is about 10% before the reference's maximum (8.4 ms)
+    assert 0.8 < out["t_turn"] / out["t_peak"] < 0.95
+    # the short window's fit warns, naming the correlation and the turnaround; the long one does not
+    assert out["short_warning"] is not None and out["long_warning"] is None
+    assert "turnaround" in out["short_warning"] and "correlated" in out["short_warning"]
+    assert abs(out["short_correlation"]) > 0.99
+    # the profile along the weakest direction: a valley for the short window, a bowl for the long one
+    assert all(out["profile_ok"].values())
+    assert 1.0 <= out["rise"]["short"] < 3.0 and out["rise"]["long"] > 10 * out["rise"]["short"]
+    # the ensemble drawn from the fit: every member ran; the band, widened by the noise, holds the data
+    # at most times, and it widens after the data end (extrapolation)
+    assert out["failures"] == 0
+    assert out["ensemble_start"] < 1e-12  # every member starts at the slab's length, 1 m
+    assert out["inside_data"] >= 0.8
+    assert 0 < out["width_data"] < out["width_after"]
 
 
 def test_ensembles_notebook(monkeypatch):
