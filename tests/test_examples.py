@@ -17,9 +17,10 @@ of); the long ones, mostly running, drop them and run as a reader runs them.
 Each must exit with status 0, and where a page states what its example prints, print it (``STATED``).
 
 Left out, each with its reason in ``EXCLUDED``: the install lines and the test command itself, which
-are what CI runs (``.ci/run``), and ``mkdocs serve``. Opt-in, marked ``examples_long`` and run only
-with ``JAXMPM_LONG_EXAMPLES=1``: the examples of ``LONG`` (full studies, the benchmark, fits; each
-over about 10 s, minutes for most)::
+are what CI runs (``.ci/run``), and ``mkdocs serve``. Marked ``examples_long`` and run only with
+``JAXMPM_LONG_EXAMPLES=1``: the examples of ``LONG`` (full studies, the benchmark, a fit with a large
+ensemble; each over about 10 s, minutes for most; 33 minutes in all on 2 cores). CI runs them after the
+suite, as a step of its own (``.ci/run``)::
 
     JAXMPM_LONG_EXAMPLES=1 python -m pytest -q -n 0 -m examples_long tests/test_examples.py
 
@@ -53,7 +54,7 @@ EXCLUDED = {
     r"mkdocs serve\b.*": "a server, it runs until stopped; CI builds the same site (mkdocs build --strict)",
 }
 
-# The opt-in examples: they run only when JAXMPM_LONG_EXAMPLES=1 (a separate CI step, marker
+# The long examples: they run only when JAXMPM_LONG_EXAMPLES=1 (a CI step after the suite, marker
 # `examples_long`). A key is the start of a shell command line as written on its page, or "python:"
 # and a page (its Python blocks), or "shell:" and a page (its shell blocks' other lines). A long
 # command line runs after its block's other lines (it may read what they wrote); the same long
@@ -66,7 +67,7 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm study multid --out": "the full 2D and 3D study",
     "jaxmpm bench --out": "the full benchmark",
     "jaxmpm run axis-aligned dim=3": "a 3D run of 4,096 particles: its compilation",
-    "python:docs/calibration.md": "a fit by gradients through whole runs, and a 1,024-member ensemble",
+    "python:docs/calibration.md": "a fit with two starts, and a 1,024-member ensemble",
 }
 OPT_IN = LONG
 LONG_ENABLED = os.environ.get("JAXMPM_LONG_EXAMPLES") == "1"
