@@ -132,7 +132,8 @@ class Fit:
             that broke down).
         starts_fitted: every start's fitted values, name to array ``(starts,)``.
         wall_s: wall time of the fit (compilation included).
-        failed_starts: start index to why it stopped (its run broke down); the others went on.
+        failed_starts: start index to why it stopped (its run broke down, or every step toward a lower
+            loss from where it stood did); the others went on.
         method: the optimiser.
         converged: whether the best start met the convergence test (else ``warning`` says so).
         names: the fitted names, the order of the matrices below.
@@ -776,6 +777,10 @@ def _finish(
     r, J = run["r"][best], run["J"][best]
     if method != "lm" and state[best] == "iterations":
         state[best] = _optax_converged(model, theta[best], start_theta[best], data[best], r, J)
+    for b in np.flatnonzero(state == "blocked"):  # another start that could not go on: say why
+        if b != best:
+            values_b = {n: float(phys_all[b, i]) for i, n in enumerate(names)}
+            failed[int(b)] = _blocked_message(model, run, int(b), values_b, final[b], lead="")
     blocked = None
     if state[best] == "blocked":
         blocked = _blocked_message(model, run, best, fitted, final[best])
@@ -850,7 +855,11 @@ def _gauss_newton_step(r, J, cap=0.5):
     return step * (cap / big) if big > cap else step
 
 
-def _blocked_message(model, run, best, fitted, loss) -> str:
+def _blocked_message(
+    model, run, best, fitted, loss, lead="calibrate: the fit cannot reach its best point: "
+) -> str:
+    """Why start ``best`` stopped where every step toward a lower loss is a run that breaks down, and
+    what to change."""
     where = ", ".join(f"{k}={v:.6g}" for k, v in fitted.items())
     broken = [e for e in run["rejected"] if e["start"] == best and e["broke"]]
     if broken and "why" not in broken[-1]:
@@ -878,7 +887,7 @@ def _blocked_message(model, run, best, fitted, loss) -> str:
         else:  # the particles' stencils, not the slab's extent, reach past the grid
             advice = f"raise pad (now {scene.pad}), e.g. to {int(np.ceil(1.5 * scene.pad))}"
     return (
-        f"calibrate: the fit cannot reach its best point: it stopped at {where} (loss {loss:.6g}), and "
+        f"{lead}it stopped at {where} (loss {loss:.6g}), and "
         f"every step toward a lower loss is a run that breaks down; the last: {why}. To go on, {advice}."
     )
 
