@@ -271,9 +271,12 @@ class _Model:
             return trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
 
         def rj(theta, start_theta, data):
-            f = lambda th: x_of(th, start_theta)  # noqa: E731
-            J = jax.jacfwd(f, has_aux=False)(theta)
-            return f(theta) - data, J
+            def with_value(th):  # the run's value rides along as aux: one pass, not two
+                x = x_of(th, start_theta)
+                return x, x
+
+            J, x = jax.jacfwd(with_value, has_aux=True)(theta)
+            return x - data, J
 
         def r_only(theta, start_theta, data):
             return x_of(theta, start_theta) - data
