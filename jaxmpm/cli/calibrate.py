@@ -194,7 +194,9 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status: 0, or 3 when the fit cannot go on (the model broke down at its start).
+        The exit status: 0 (also when the data do not determine the constants: then one warning line
+        on stderr), or 3 when the fit has no answer (every start broke down, or every step toward a
+        lower loss is a run that breaks down).
 
     Raises:
         UsageError: bad input.
