@@ -8,6 +8,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from . import calibrate as calibrate
 from . import exact as exact
+from . import exact_euler as exact_euler
 from . import long_run as long_run
 from . import metrics as metrics
 from . import reference as reference
