@@ -556,9 +556,10 @@ def _loss(r, L):
 
 
 def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar) -> dict:
-    """Levenberg-Marquardt with Marquardt's diagonal scaling, batched over members (host loop, one
-    compiled ``vmap`` of residuals and Jacobian per iteration). A trial that breaks down or raises the
-    loss is rejected and the damping raised; a broken run's loss is never used."""
+    """Levenberg-Marquardt, damping isotropic in ``theta`` (the fit's variables are logarithmic, so it
+    damps relative changes alike), batched over members: a host loop around one compiled ``vmap`` of
+    residuals and Jacobian per iteration. A trial that breaks down or raises the loss is rejected and
+    the damping raised; a broken run's loss is never used."""
     B, p = start_theta.shape
     theta = np.zeros((B, p))
     r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
