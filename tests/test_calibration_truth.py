@@ -366,3 +366,8 @@ def test_cli_ensemble_needs_vary_or_from_fit(capsys):
     usage(
         capsys, ["ensemble", "gas-slab", "--members", "2"], "--vary NAME=LOW:HIGH (repeatable), or --from-fit"
     )
+
+
+def test_cli_ensemble_grid_sizing_names_a_bad_corner_of_the_ranges(capsys):
+    argv = ["ensemble", "gas-slab", "--vary", "P0=5e4:2e5", "--dt", "1e-5", "--steps", "2", "--members", "2"]
+    usage(capsys, argv, "--vary: P0 must be > p_atm")

@@ -236,7 +236,10 @@ def _size_grid(scene, bounds: dict, timing: dict, fixed) -> "jm.GasSlab":
     t_end = timing["t_end"] if "t_end" in timing else timing["dt"] * timing["steps"]
     reach, widest = 0.0, scene
     for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in bounds.items()]):
-        sc = type(scene)(**{**scene.parameter_values(), **dict(corner)})
+        try:
+            sc = type(scene)(**{**scene.parameter_values(), **dict(corner)})
+        except ValueError as e:
+            raise UsageError(f"--vary: {e}") from None
         if sc.max_reach(t_end) > reach:
             reach, widest = sc.max_reach(t_end), sc
     need = pad_for(widest, 1.05 * reach)
