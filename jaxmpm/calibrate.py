@@ -270,6 +270,8 @@ class _Model:
             sc = type(scene)(**{**scene.parameter_values(), **dict(zip(names, phys))})
             return trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
 
+        self.x_of = x_of  # one member's trajectory, unbatched: ``(theta, start_theta) -> x_R(t_data)``
+
         def rj(theta, start_theta, data):
             def with_value(th):  # the run's value rides along as aux: one pass, not two
                 x = x_of(th, start_theta)
@@ -669,14 +671,8 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     B, p = start_theta.shape
     dtype = model.scene.h.dtype
 
-    off = jnp.asarray(model.off, dtype=dtype)
-    scene, names, interp = model.scene, model.names, model.interpolator
-
     def loss_fn(theta, start_theta, data):
-        phys = off + jnp.exp(start_theta + theta)
-        sc = type(scene)(**{**scene.parameter_values(), **dict(zip(names, phys))})
-        x = trajectory(sc, interp, model.t_data, dt=model.dt, **model.kwargs)
-        return jnp.mean(jnp.square((x - data) / L))
+        return jnp.mean(jnp.square((model.x_of(theta, start_theta) - data) / L))
 
     opt = optax.adam(learning_rate) if method == "adam" else optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss_fn) if method == "lbfgs" else None
