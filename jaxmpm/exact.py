@@ -12,6 +12,8 @@ Rankine-Hugoniot conditions ``s [F] = -[v]``, ``rho0 s [v] = [P]``. (Toro, "Riem
 numerical methods for fluid dynamics", ch. 4, written here in Lagrangian form; ``p_atm`` drops out.)
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -79,6 +81,14 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
     Returns:
         ``(F_star, v_star)``.
     """
+
+    return _riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations)
+
+
+@functools.partial(jax.jit, static_argnums=7)
+def _riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations):
+    """``riemann_star``, compiled once per dtype (its bisection loop would otherwise compile at every
+    call with concrete values)."""
 
     def f(y):
         F = jnp.exp(y)
