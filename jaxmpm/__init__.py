@@ -9,9 +9,11 @@ from importlib.metadata import PackageNotFoundError, version
 from . import calibrate as calibrate
 from . import exact as exact
 from . import exact_euler as exact_euler
+from . import geometry as geometry
 from . import long_run as long_run
 from . import metrics as metrics
 from . import reference as reference
+from . import regions as regions
 from . import sensitivity as sensitivity
 from . import status as status
 from . import vtk as vtk
@@ -54,32 +56,52 @@ from .interpolators import (
     AbstractInterpolator as AbstractInterpolator,
 )
 from .materials import (
+    MIE_GRUNEISEN as MIE_GRUNEISEN,
+)
+from .materials import (
+    AbstractEOS as AbstractEOS,
+)
+from .materials import (
     AbstractMaterial as AbstractMaterial,
 )
 from .materials import (
     AdiabaticGas as AdiabaticGas,
 )
 from .materials import (
+    IdealGas as IdealGas,
+)
+from .materials import (
     LinearElastic as LinearElastic,
+)
+from .materials import (
+    MieGruneisen as MieGruneisen,
 )
 from .materials import (
     NeoHookean as NeoHookean,
 )
 from .metrics import corner_gap as corner_gap
+from .metrics import density as density
 from .metrics import diagnostics as diagnostics
 from .metrics import domain_corners as domain_corners
 from .metrics import errors as errors
+from .metrics import euler_errors as euler_errors
+from .metrics import pressure as pressure
 from .metrics import separation as separation
 from .particles import Body as Body
 from .particles import State as State
+from .regions import Region as Region
 from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
 from .scenes import AxisAligned as AxisAligned
 from .scenes import Blast as Blast
+from .scenes import Bodies as Bodies
 from .scenes import GasExpansion as GasExpansion
 from .scenes import GasSlab as GasSlab
+from .scenes import Interface as Interface
 from .scenes import Manufactured as Manufactured
+from .scenes import Noh as Noh
 from .scenes import Riemann as Riemann
+from .scenes import ShockTube as ShockTube
 from .scenes import VacuumExpansion as VacuumExpansion
 from .scenes import VibratingBar as VibratingBar
 from .sensitivity import continuous_parameters as continuous_parameters

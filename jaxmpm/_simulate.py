@@ -13,7 +13,7 @@ from jaxtyping import Array, Float, Int
 from . import _memory
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
-from ._step import Model, Setup, initial_state, setup, stable_dt, step
+from ._step import Model, Setup, check_structure, initial_state, setup, stable_dt, step
 from ._util import as_float, det
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import Body, State
@@ -21,8 +21,9 @@ from .scenes import AbstractScene
 from .transfers import FLIP, TRANSFERS, AbstractTransfer
 from .viscosity import ArtificialViscosity
 
-STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction")
-"""The ``State`` fields a ``SaveAt`` may name: the per-particle (and per-corner) arrays."""
+STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction", "e", "internal")
+"""The ``State`` fields a ``SaveAt`` may name: the per-particle (and per-corner) arrays (``internal``
+is saved as one entry ``internal.<variable>`` per internal variable)."""
 
 
 MAX_STEP_COUNT = 2**31 - 1
@@ -144,6 +145,7 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
             f"{name} must be <= {MAX_STEP_COUNT} (the step counter is a 32-bit integer), got {steps}"
         )
     check_int("artificial_cells", artificial_cells, 0)
+    check_structure(scene, artificial_cells)
     if not isinstance(checkpoint, bool):
         check_int("checkpoint", checkpoint, 1)
     if cfl_limit is not None:
@@ -151,8 +153,9 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
 
 
 def save_fields(state: State, fields: Sequence[str]) -> dict[str, Array]:
-    """The named fields of ``state`` that the run has (``C``, ``corners`` and ``x_traction`` may be
-    ``None`` and are then left out).
+    """The named fields of ``state`` that the run has (``C``, ``corners``, ``x_traction``, ``e`` and
+    ``internal`` may be ``None`` and are then left out; ``internal`` gives one entry
+    ``internal.<variable>`` per variable).
 
     Args:
         state: the state.
@@ -161,7 +164,14 @@ def save_fields(state: State, fields: Sequence[str]) -> dict[str, Array]:
     Returns:
         Field name to array.
     """
-    return {name: getattr(state, name) for name in fields if getattr(state, name) is not None}
+    out = {}
+    for name in fields:
+        value = getattr(state, name)
+        if isinstance(value, dict):
+            out.update({f"{name}.{k}": v for k, v in value.items()})
+        elif value is not None:
+            out[name] = value
+    return out
 
 
 # Reverse mode stores the carried state at every block end and one block's per-step residuals, so
@@ -322,6 +332,12 @@ def run_scan(
 _run_scan_jit = eqx.filter_jit(run_scan)
 
 
+def _energy(sol: Solution, p: int) -> str:
+    """``, region k, e = ...`` for a particle of a body of regions ("" otherwise)."""
+    out = "" if sol.body.region is None else f", region {int(sol.body.region[p])}"
+    return out + ("" if sol.state.e is None else f", e = {float(sol.state.e[p]):.6g}")
+
+
 def failure_message(sol: Solution, dt: float | None) -> str:
     """The message of a breakdown: the step, the time, the first failing particle and the quantities.
 
@@ -344,8 +360,8 @@ def failure_message(sol: Solution, dt: float | None) -> str:
         if st.x.shape[1] == 1:
             X = float(sol.body.X[p, 0])
             who = (
-                f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g} "
-                f"at step {last})"
+                f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g}"
+                f"{_energy(sol, p)} at step {last})"
             )
         else:  # 2D, 3D: vectors, and J = det F
 
@@ -354,8 +370,8 @@ def failure_message(sol: Solution, dt: float | None) -> str:
 
             J = float(det(st.F[p]))
             who = (
-                f"particle {p} (X = {vec(sol.body.X[p])}, x = {vec(st.x[p])}, J = det F = {J:.6g} "
-                f"at step {last})"
+                f"particle {p} (X = {vec(sol.body.X[p])}, x = {vec(st.x[p])}, J = det F = {J:.6g}"
+                f"{_energy(sol, p)} at step {last})"
             )
     return (
         f"jaxmpm: the run broke down at step {f['step']} ({when}): {who}: "

@@ -28,8 +28,9 @@ from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed
 from .grid import Grid
 from .interpolators import AbstractInterpolator
 from .interpolators._transfer import any_axis, points_stencil
-from .materials import AbstractMaterial
+from .materials import AbstractEOS, AbstractMaterial
 from .particles import Body, State
+from .regions import Layout, Region
 from .scenes import AbstractScene
 from .transfers import AbstractTransfer
 from .viscosity import ArtificialViscosity
@@ -75,7 +76,9 @@ class Setup(eqx.Module):
     Attributes:
         grid: the background grid.
         body: the reference configuration of the real particles.
-        material: the scene's material.
+        material: the scene's material (of a scene of regions: its first region's).
+        regions: the scene's regions, or ``None`` for a body of one region.
+        layout: which particles belong to which region (static), or ``None``.
         layer: the artificial particles, or ``None``.
         walls: the nodal velocity components held at zero (walls, symmetry planes), or ``None``.
         traction: the material boundary points that carry a traction, or ``None``.
@@ -84,7 +87,9 @@ class Setup(eqx.Module):
 
     grid: Grid
     body: Body
-    material: AbstractMaterial
+    material: AbstractMaterial | AbstractEOS
+    regions: tuple[Region, ...] | None
+    layout: Layout | None = eqx.field(static=True)
     layer: ArtificialLayer | None
     walls: Bool[Array, "n_nodes dim"] | None
     traction: TractionPoints | None
@@ -115,6 +120,83 @@ def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
     return tuple(f is not None for f in faces)
 
 
+def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
+    """What a scene's regions allow (``simulate`` checks it before anything is traced).
+
+    Args:
+        scene: the scene.
+        artificial_cells: layers of artificial cells of the run.
+
+    Raises:
+        ValueError: a one-region scene with an energy equation, or artificial cells or a traction on
+            a body of regions that does not fill its box.
+    """
+    lay = scene.layout()
+    if lay is None:
+        if isinstance(scene.material(), AbstractEOS):
+            raise ValueError(
+                f"{type(scene).__name__}: a material with an energy equation "
+                f"({type(scene.material()).__name__}) needs the scene's regions (each with its initial "
+                f"energy); declare regions"
+            )
+        return
+    if lay.box:
+        return
+    if artificial_cells > 0:
+        raise ValueError(
+            f"artificial_cells is supported only where the body is a box; the regions of "
+            f"{type(scene).__name__} do not fill [0, cells]^dim (use artificial_cells=0)"
+        )
+    if scene.traction is not None:
+        raise ValueError(
+            f"a traction is supported only on the faces of a box; the regions of {type(scene).__name__} do "
+            f"not fill [0, cells]^dim (curved and inner boundaries are free surfaces of zero traction)"
+        )
+
+
+class _Group(eqx.Module):
+    """The particles of one material: the material, its reference density and which particles."""
+
+    material: AbstractMaterial | AbstractEOS
+    rho0: Float[Array, ""]
+    index: slice | np.ndarray | None = eqx.field(static=True)
+
+
+def _groups(model: Model, setup: Setup) -> list[_Group]:
+    if setup.regions is None:
+        return [_Group(setup.material, model.scene.rho0, None)]
+    return [_Group(r.material, r.rho0, setup.layout.index(k)) for k, r in enumerate(setup.regions)]
+
+
+def _take(a, index):
+    return a if index is None else a[index]
+
+
+def _assemble(parts, groups, n):
+    """One array from each group's part (a single group's part is the whole)."""
+    if groups[0].index is None:
+        return parts[0]
+    out = jnp.zeros((n,) + parts[0].shape[1:], dtype=parts[0].dtype)
+    for part, g in zip(parts, groups):
+        out = out.at[g.index].set(part)
+    return out
+
+
+def _internal_keys(material, dim: int, dtype) -> tuple[str, ...]:
+    if not isinstance(material, AbstractEOS):
+        return ()
+    z = jax.eval_shape(material.initial_internal, jax.ShapeDtypeStruct((dim,), dtype))
+    return () if z is None else tuple(sorted(z))
+
+
+def _subset(internal, keys, index):
+    return None if not keys else {k: _take(internal[k], index) for k in keys}
+
+
+def _eos_stress(p, dim, dtype):
+    return -p[:, None, None] * jnp.eye(dim, dtype=dtype)[None]
+
+
 def setup(model: Model) -> Setup:
     """Derive what the run needs once: grid, body, material, artificial layer, walls, traction points.
 
@@ -137,11 +219,15 @@ def setup(model: Model) -> Setup:
             f"got pad={scene.pad}, artificial_cells={model.artificial_cells}"
         )
     walls = fixed_mask(grid.axes, scene.pad, scene.cells, scene.left, scene.right)
+    check_structure(scene, model.artificial_cells)
+    lay = scene.layout()
     body = scene.body()
     return Setup(
         grid=grid,
         body=body,
         material=scene.material(),
+        regions=None if lay is None else scene.regions(),
+        layout=lay,
         layer=artificial_layer(scene.cells, scene.ppc, model.artificial_cells, free, scene.dim),
         walls=None if walls is None else jnp.asarray(walls),
         traction=traction_points(scene.cells, scene.ppc, scene.h, traction_sides(scene)),
@@ -165,7 +251,6 @@ def initial_state(model: Model, setup: Setup) -> State:
     scene, body = model.scene, setup.body
     n, dim = body.X.shape
     dtype = body.X.dtype
-    v = jax.vmap(scene.initial_velocity)(body.X)
     x_tr = None if setup.traction is None else setup.traction.X
     if scene.initial_position is None:
         x, corners = body.X, body.X_corners
@@ -175,24 +260,63 @@ def initial_state(model: Model, setup: Setup) -> State:
         x, corners = place(body.X), place(body.X_corners)
         F = jax.vmap(jax.jacfwd(scene.initial_position))(body.X)
         x_tr = None if x_tr is None else place(x_tr)
-    C = jax.vmap(jax.jacfwd(scene.initial_velocity))(body.X) if model.transfer.affine else None
-    if model.transfer.affine and scene.initial_position is not None:
-        C = jnp.einsum("nab,nbc->nac", C, jnp.linalg.inv(F))  # C = dv/dx = dv/dX F^-1
     corners = corners if model.interpolator.tracks_corners else None
+    e = internal = None
+    if setup.regions is None:
+        v = jax.vmap(scene.initial_velocity)(body.X)
+        C = jax.vmap(jax.jacfwd(scene.initial_velocity))(body.X) if model.transfer.affine else None
+        if model.transfer.affine and scene.initial_position is not None:
+            C = jnp.einsum("nab,nbc->nac", C, jnp.linalg.inv(F))  # C = dv/dx = dv/dX F^-1
+        sigma = jax.vmap(setup.material.stress)(F)
+    else:  # each region's uniform velocity (C = 0), energy, internal variables and stress
+        reg = jnp.asarray(setup.layout.region)
+        v = jnp.stack([r.velocity.astype(dtype) for r in setup.regions])[reg]
+        C = jnp.zeros((n, dim, dim), dtype=dtype) if model.transfer.affine else None
+        sigma, e, internal = _initial_regions(model, setup, F)
     return State(
         t=jnp.zeros((), dtype=dtype),
         step=jnp.zeros((), dtype=jnp.int32),
         x=x,
         v=v,
         F=F,
-        sigma=jax.vmap(setup.material.stress)(F),
+        sigma=sigma,
         C=C,
         corners=corners,
         x_traction=x_tr,
+        e=e,
+        internal=internal,
         status=jnp.zeros((), dtype=jnp.int32),
         fail_step=jnp.full((), -1, dtype=jnp.int32),
         fail_particle=jnp.full((), -1, dtype=jnp.int32),
     )
+
+
+def _initial_regions(model: Model, setup: Setup, F):
+    """Stress, energy and internal variables at ``t = 0`` of a body of regions."""
+    body = setup.body
+    n, dim = body.X.shape
+    dtype = body.X.dtype
+    groups = _groups(model, setup)
+    eos = [isinstance(g.material, AbstractEOS) for g in groups]
+    keys = sorted({k for g in groups for k in _internal_keys(g.material, dim, dtype)})
+    e = None
+    if any(eos):
+        e = jnp.stack([r.energy.astype(dtype) for r in setup.regions])[jnp.asarray(setup.layout.region)]
+    internal = {k: jnp.zeros((n,), dtype=dtype) for k in keys} or None
+    sig = []
+    for g, is_eos in zip(groups, eos):
+        F_g = _take(F, g.index)
+        if not is_eos:
+            sig.append(jax.vmap(g.material.stress)(F_g))
+            continue
+        z = jax.vmap(g.material.initial_internal)(_take(body.X, g.index))
+        if z is not None:
+            for k, val in z.items():
+                internal[k] = internal[k].at[g.index].set(val.astype(dtype))
+        rho = g.rho0 / det(F_g)
+        p = jax.vmap(g.material.pressure)(rho, _take(e, g.index), z)
+        sig.append(_eos_stress(p, dim, dtype))
+    return _assemble(sig, groups, n), e, internal
 
 
 def _particle_corners(state: State, body: Body):
@@ -202,10 +326,21 @@ def _particle_corners(state: State, body: Body):
 def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]:
     """Each particle's wave speed; the stored stress stands in for work on ``F`` when it is the
     material's alone (no viscous part)."""
-    if model.viscosity is None:
-        fn = jax.vmap(setup.material.sound_speed_from_stress, in_axes=(0, 0, None))
-        return fn(state.F, state.sigma, model.scene.rho0)
-    return jax.vmap(setup.material.sound_speed, in_axes=(0, None))(state.F, model.scene.rho0)
+    groups = _groups(model, setup)
+    out = []
+    for g in groups:
+        F = _take(state.F, g.index)
+        if isinstance(g.material, AbstractEOS):
+            keys = _internal_keys(g.material, F.shape[-1], F.dtype)
+            z = _subset(state.internal, keys, g.index)
+            c = jax.vmap(g.material.sound_speed)(g.rho0 / det(F), _take(state.e, g.index), z)
+        elif model.viscosity is None:
+            fn = jax.vmap(g.material.sound_speed_from_stress, in_axes=(0, 0, None))
+            c = fn(F, _take(state.sigma, g.index), g.rho0)
+        else:
+            c = jax.vmap(g.material.sound_speed, in_axes=(0, None))(F, g.rho0)
+        out.append(c)
+    return _assemble(out, groups, state.F.shape[0])
 
 
 def _transfer_to_grid(grid: Grid, transfer: AbstractTransfer, stencil, x, v, C, m):
@@ -355,9 +490,13 @@ def step(
 
     # 5. Kinematics, 6. constitutive update.
     F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
-    sigma = jax.vmap(mat.stress)(F_new)
-    if model.viscosity is not None:
-        sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
+    if setup.regions is None:
+        sigma = jax.vmap(mat.stress)(F_new)
+        if model.viscosity is not None:
+            sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
+        e_new, internal = state.e, state.internal
+    else:
+        sigma, e_new, internal = _constitutive(model, setup, state, F_new, dt)
     x_tr = state.x_traction
     if x_tr is not None:
         x_tr = x_tr + dt * contract("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
@@ -372,6 +511,8 @@ def step(
         C=C,
         corners=corners,
         x_traction=x_tr,
+        e=e_new,
+        internal=internal,
         status=state.status,
         fail_step=state.fail_step,
         fail_particle=state.fail_particle,
@@ -383,8 +524,15 @@ def step(
     finite = finite & jnp.isfinite(F_new).all((1, 2)) & jnp.isfinite(sigma).all((1, 2))
     if corners is not None:
         finite = finite & jnp.isfinite(body.particle_corners(corners)).all((1, 2))
+    if e_new is not None:
+        finite = finite & jnp.isfinite(e_new)
+    if internal is not None:
+        for val in internal.values():
+            finite = finite & jnp.isfinite(val)
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
+    if e_new is not None:
+        checks.append((st_bits.NEGATIVE_ENERGY, e_new < 0.0))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
     left_grid = _off_grid(grid, lo, hi)
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
@@ -420,6 +568,60 @@ def step(
             jnp.where(first, particle, state.fail_particle),
         ),
     )
+
+
+def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
+    """Stress, energy and internal variables after a step, each region by its own material.
+
+    A material of ``F`` alone gives ``sigma(F_new)`` (plus the viscous stress). An ``AbstractEOS``
+    advances its internal variables, then its energy by the trapezoid rule,
+
+        ``e_new = e - ((p + p_new) / 2 + q) (J_new - J) / rho0``,
+
+    solved for ``e_new`` exactly (``p_new = a + b e_new`` is affine in it), and gives
+    ``sigma = -(p_new + q) I``. ``q`` is the artificial viscosity, with the sound speed at the new
+    density and the old energy.
+    """
+    body, h = setup.body, setup.grid.h
+    n, dim = body.X.shape
+    dtype = body.X.dtype
+    groups = _groups(model, setup)
+    sig, energies, internal = [], [], None if state.internal is None else dict(state.internal)
+    for g in groups:
+        F_old, F_g = _take(state.F, g.index), _take(F_new, g.index)
+        mat = g.material
+        if not isinstance(mat, AbstractEOS):
+            s_g = jax.vmap(mat.stress)(F_g)
+            if model.viscosity is not None:
+                s_g = s_g + model.viscosity.stress(mat, F_old, F_g, dt, g.rho0, h)
+            sig.append(s_g)
+            if state.e is not None:
+                energies.append(_take(state.e, g.index))
+            continue
+        keys = _internal_keys(mat, dim, dtype)
+        z_old = _subset(state.internal, keys, g.index)
+        J_old, J_new = det(F_old), det(F_g)
+        X_g = _take(body.X, g.index)
+        z_new = jax.vmap(mat.update_internal, in_axes=(0, 0, None, None, 0, 0))(
+            z_old, X_g, state.t, dt, J_old, J_new
+        )
+        e_old = _take(state.e, g.index)
+        rho_old, rho_new = g.rho0 / J_old, g.rho0 / J_new
+        p_old = jax.vmap(mat.pressure)(rho_old, e_old, z_old)
+        q = jnp.zeros_like(J_new)
+        if model.viscosity is not None:
+            c = jax.vmap(mat.sound_speed)(rho_new, e_old, z_new)
+            q = model.viscosity.pressure_of(J_old, J_new, dt, rho_new, c, h)
+        a, b = jax.vmap(mat.pressure_terms)(rho_new, z_new)
+        dJ = (J_new - J_old) / g.rho0
+        e_g = (e_old - (0.5 * p_old + q + 0.5 * a) * dJ) / (1.0 + 0.5 * b * dJ)
+        sig.append(_eos_stress(a + b * e_g + q, dim, dtype))
+        energies.append(e_g)
+        if z_new is not None:
+            for k in keys:
+                internal[k] = internal[k].at[g.index].set(z_new[k]) if g.index is not None else z_new[k]
+    e = None if state.e is None else _assemble(energies, groups, n)
+    return _assemble(sig, groups, n), e, internal
 
 
 def fold_massless(

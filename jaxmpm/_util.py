@@ -32,6 +32,24 @@ def as_float(x: object) -> Float[Array, ""]:
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
+def static_fraction(x: object) -> float:
+    """A static parameter ``x0`` (where two regions meet, a fraction of a length) as a Python float.
+
+    Args:
+        x: a real number.
+
+    Returns:
+        ``float(x)``.
+
+    Raises:
+        ValueError: ``x`` is not a real number ("x0 must be a real number, got 'abc'").
+    """
+    from ._checks import check_real
+
+    check_real("x0", x)
+    return float(x)
+
+
 def det(F):
     """``det F`` of each particle: closed forms up to 3x3 (the entry itself in 1D), which fuse, where
     ``jnp.linalg.det`` runs an LU factorisation per matrix.

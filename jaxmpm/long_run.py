@@ -19,7 +19,8 @@ The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
   ``complete``, ``status`` and ``failure`` (or null), ``saved_at`` (UTC).
 - ``state.<name>``: the state at ``step``: ``t``, ``step``, ``x`` (n, dim), ``v`` (n, dim),
   ``F`` (n, dim, dim), ``sigma`` (n, dim, dim), and where the run has them ``C``, ``corners``,
-  ``x_traction``; ``status``, ``fail_step``, ``fail_particle``.
+  ``x_traction``; ``status``, ``fail_step``, ``fail_particle``; ``e`` (n) where a material has an
+  energy equation, and ``state.internal.<variable>`` (n) for each internal variable.
 - ``body.X`` (reference positions, n x dim) and ``body.boundary`` (boundary-cell particles).
 - ``history.ts`` and ``history.<name>`` (leading time axis) when the run saved a history.
 
@@ -262,7 +263,10 @@ class _Recorder:
         arrays = {"meta": np.asarray(json.dumps(meta))}
         for name in STATE_NAMES:
             value = getattr(state, name)
-            if value is not None:
+            if isinstance(value, dict):  # internal variables: one array per variable
+                for k, v in value.items():
+                    arrays[f"state.{name}.{k}"] = np.asarray(v)
+            elif value is not None:
                 arrays[f"state.{name}"] = np.asarray(value)
         arrays["body.X"] = np.asarray(self.body.X)
         arrays["body.boundary"] = np.asarray(self.body.boundary)
@@ -880,6 +884,13 @@ def _load(path: pathlib.Path):
                     f"(interpolator {meta['interpolator']['name']}, transfer {meta['transfer']})"
                 )
             fields[name] = None
+        elif isinstance(template, dict):
+            fields[name] = {
+                k: jnp.asarray(
+                    _check_array(path, f"{key}.{k}", arrays, tuple(t.shape), t.dtype), dtype=t.dtype
+                )
+                for k, t in template.items()
+            }
         else:
             a = _check_array(path, key, arrays, tuple(template.shape), template.dtype)
             fields[name] = jnp.asarray(a, dtype=template.dtype)
@@ -900,13 +911,14 @@ def _load(path: pathlib.Path):
     else:
         n_saved = meta["step"] // saveat.every + 1  # steps 0, every, 2 every, ... up to step
         ts = list(_check_array(path, "history.ts", arrays, (n_saved,), np.dtype(np.float64)))
-        names = [f for f in saveat.fields if getattr(fresh, f) is not None]
+        templates = save_fields(fresh, saveat.fields)
+        names = list(templates)
         extra = [k for k in held if k != "history.ts" and k[len("history.") :] not in names]
         if extra:
             raise ValueError(f"{path}: it holds {extra[0]}, which is not among the saved fields {names}")
         history = {}
         for f in names:
-            template = getattr(fresh, f)
+            template = templates[f]
             a = _check_array(path, f"history.{f}", arrays, (n_saved, *template.shape), template.dtype)
             history[f] = list(a)
     rec = _Recorder(

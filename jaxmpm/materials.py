@@ -243,3 +243,187 @@ class NeoHookean(AbstractMaterial):
     def sound_speed_from_stress(self, F, sigma, rho0):
         del sigma
         return self.sound_speed(F, rho0)
+
+
+class AbstractEOS(eqx.Module):
+    """A fluid-like material with an energy equation: pressure from density and internal energy.
+
+    The pressure is affine in the specific internal energy ``e`` (per unit mass),
+
+        ``p = a(rho, z) + b(rho, z) e``,
+
+    which holds for the ideal gas, Mie-Grueneisen and JWL forms. ``z`` are the particle's internal
+    variables (a dict of scalars, or ``None`` for a material without any). The stress is ``-p I``;
+    the step updates ``e`` from the stress power, ``rho0 de = -(p + q) dJ`` (``q`` the artificial
+    viscosity), with the pressure taken at the middle of the step (the trapezoid rule, solved
+    exactly because ``p`` is affine in ``e``; Wilkins, "Calculation of elastic-plastic flow", 1964).
+
+    A concrete EOS implements ``pressure_terms``, ``initial_internal`` and ``update_internal``.
+    """
+
+    @abc.abstractmethod
+    def pressure_terms(
+        self, rho: Float[Array, ""], z: dict[str, Array] | None
+    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
+        """The two terms of ``p = a + b e`` at density ``rho`` (one particle).
+
+        Args:
+            rho: current density.
+            z: the particle's internal variables, or ``None``.
+
+        Returns:
+            ``(a, b)``.
+        """
+
+    @abc.abstractmethod
+    def initial_internal(self, X: Float[Array, " dim"]) -> dict[str, Array] | None:
+        """The internal variables of a particle at ``t = 0``.
+
+        Args:
+            X: its reference position.
+
+        Returns:
+            A dict of scalars, or ``None`` for a material without internal variables.
+        """
+
+    @abc.abstractmethod
+    def update_internal(
+        self,
+        z: dict[str, Array] | None,
+        X: Float[Array, " dim"],
+        t: Float[Array, ""],
+        dt: Float[Array, ""],
+        J_old: Float[Array, ""],
+        J_new: Float[Array, ""],
+    ) -> dict[str, Array] | None:
+        """The internal variables after a step from ``t`` to ``t + dt`` (one particle).
+
+        Args:
+            z: the internal variables before the step (``None`` for none).
+            X: the particle's reference position.
+            t: time at the start of the step.
+            dt: the step.
+            J_old: volume ratio ``det F`` before the step.
+            J_new: volume ratio after it.
+
+        Returns:
+            The new internal variables.
+        """
+
+    def pressure(
+        self, rho: Float[Array, ""], e: Float[Array, ""], z: dict[str, Array] | None = None
+    ) -> Float[Array, ""]:
+        """The pressure ``a(rho, z) + b(rho, z) e``.
+
+        Args:
+            rho: density.
+            e: specific internal energy.
+            z: internal variables, or ``None``.
+
+        Returns:
+            ``p``.
+        """
+        a, b = self.pressure_terms(rho, z)
+        return a + b * e
+
+    def sound_speed(
+        self, rho: Float[Array, ""], e: Float[Array, ""], z: dict[str, Array] | None = None
+    ) -> Float[Array, ""]:
+        """The isentropic sound speed, ``c^2 = dp/drho|_e + (p / rho^2) dp/de|_rho``.
+
+        Args:
+            rho: density.
+            e: specific internal energy.
+            z: internal variables, or ``None``.
+
+        Returns:
+            ``c`` (0 where ``c^2 < 0``).
+        """
+        a, b = self.pressure_terms(rho, z)
+        da, db = jax.jvp(lambda r: self.pressure_terms(r, z), (rho,), (jnp.ones_like(rho),))[1]
+        p = a + b * e
+        return jnp.sqrt(jnp.maximum(da + db * e + p * b / (rho * rho), 0.0))
+
+
+class IdealGas(AbstractEOS):
+    """Ideal (polytropic) gas: ``p = (gamma - 1) rho e``, ``c = sqrt(gamma p / rho)``.
+
+    The Euler equations' gas of the shock tube and Noh's problem (Toro, "Riemann Solvers and
+    Numerical Methods for Fluid Dynamics", ch. 1). No internal variables.
+
+    Attributes:
+        gamma: ratio of specific heats, > 1.
+    """
+
+    gamma: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check_greater("gamma", self.gamma, 1.0)
+
+    def pressure_terms(self, rho, z):
+        del z
+        return jnp.zeros_like(rho), (self.gamma - 1.0) * rho
+
+    def initial_internal(self, X):
+        del X
+        return None
+
+    def update_internal(self, z, X, t, dt, J_old, J_new):
+        del X, t, dt, J_old, J_new
+        return z
+
+
+class MieGruneisen(AbstractEOS):
+    """Mie-Grueneisen solid on its linear ``Us = c0 + s up`` Hugoniot, with ``rho Gamma = rho_ref Gamma0``.
+
+    With ``eta = 1 - rho_ref / rho`` (compression > 0), the Hugoniot pressure and energy are ``p_H =
+    rho_ref c0^2 eta / (1 - s eta)^2`` and ``e_H = p_H eta / (2 rho_ref)``, and off the Hugoniot
+
+        ``p = p_H (1 - Gamma0 eta / 2) + Gamma0 rho_ref e``
+
+    (Meyers, "Dynamic Behavior of Materials", 1994, sec. 5.3; the form of Uintah's MPM
+    ``MieGruneisenEOS``). The same expression is used in tension (``eta < 0``), where it is smooth
+    and close to linear. ``MIE_GRUNEISEN`` holds standard constants of copper, 4340 steel and
+    6061-T6 aluminium. No internal variables.
+
+    Attributes:
+        rho_ref: reference (ambient) density of the Hugoniot.
+        c0: bulk sound speed, the intercept of ``Us(up)``.
+        s: slope of ``Us(up)``, >= 0.
+        Gamma0: Grueneisen coefficient at ``rho_ref``, >= 0.
+    """
+
+    rho_ref: Float[Array, ""] = eqx.field(converter=as_float)
+    c0: Float[Array, ""] = eqx.field(converter=as_float)
+    s: Float[Array, ""] = eqx.field(converter=as_float)
+    Gamma0: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        check_positive("rho_ref", self.rho_ref)
+        check_positive("c0", self.c0)
+        check_nonnegative("s", self.s)
+        check_nonnegative("Gamma0", self.Gamma0)
+
+    def pressure_terms(self, rho, z):
+        del z
+        eta = 1.0 - self.rho_ref / rho
+        p_h = self.rho_ref * self.c0**2 * eta / jnp.square(1.0 - self.s * eta)
+        return p_h * (1.0 - 0.5 * self.Gamma0 * eta), self.Gamma0 * self.rho_ref * jnp.ones_like(rho)
+
+    def initial_internal(self, X):
+        del X
+        return None
+
+    def update_internal(self, z, X, t, dt, J_old, J_new):
+        del X, t, dt, J_old, J_new
+        return z
+
+
+MIE_GRUNEISEN: dict[str, dict[str, float]] = {
+    "copper": dict(rho_ref=8930.0, c0=3940.0, s=1.489, Gamma0=2.02),
+    "steel-4340": dict(rho_ref=7810.0, c0=4578.0, s=1.33, Gamma0=1.67),
+    "al-6061": dict(rho_ref=2703.0, c0=5240.0, s=1.40, Gamma0=1.97),
+}
+"""Mie-Grueneisen constants (SI: kg/m^3, m/s) of OFHC copper, 4340 steel and 6061-T6 aluminium, from
+Steinberg, "Equation of state and strength properties of selected materials", LLNL report
+UCRL-MA-106439 (1991, change 1 1996). ``MieGruneisen(**MIE_GRUNEISEN["copper"])``."""

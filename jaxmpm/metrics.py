@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
+from .materials import AbstractEOS
 from .particles import Body, State, parallelogram_corners
 from .scenes import AbstractScene
 
@@ -254,7 +255,8 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
 
     ``momentum`` is a number in 1D and a vector of ``dim`` components in 2D and 3D.
 
-    Internal energy is ``sum_p V0_p W(F_p)`` with the material's stored energy ``W``.
+    Internal energy is ``sum_p V0_p W(F_p)`` with the material's stored energy ``W``, and
+    ``sum_p m_p e_p`` on the particles of a material with an energy equation (``AbstractEOS``).
 
     Args:
         scene: the scene (its material).
@@ -264,9 +266,20 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
     Returns:
         ``dict(mass, momentum, energy_kinetic, energy_internal, energy)``.
     """
-    mat = scene.material()
     kinetic = 0.5 * jnp.sum(body.m * jnp.sum(jnp.square(state.v), axis=1))
-    internal = jnp.sum(body.V0 * jax.vmap(mat.energy_density)(state.F))
+    if scene.regions is None:
+        internal = jnp.sum(body.V0 * jax.vmap(scene.material().energy_density)(state.F))
+    else:
+        lay = scene.layout()
+        internal = jnp.zeros((), dtype=body.m.dtype)
+        for k, region in enumerate(scene.regions()):
+            idx = lay.index(k)
+            if isinstance(region.material, AbstractEOS):
+                internal = internal + jnp.sum(body.m[idx] * state.e[idx])
+            else:
+                internal = internal + jnp.sum(
+                    body.V0[idx] * jax.vmap(region.material.energy_density)(state.F[idx])
+                )
     return dict(
         mass=jnp.sum(body.m),
         momentum=_momentum(body.m[:, None] * state.v),
@@ -274,3 +287,57 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
         energy_internal=internal,
         energy=kinetic + internal,
     )
+
+
+def density(state: State, body: Body) -> Float[Array, " n"]:
+    """Each particle's current density ``m / (V0 det F)``.
+
+    Args:
+        state: the state.
+        body: the reference configuration.
+
+    Returns:
+        ``rho``.
+    """
+    return body.m / (body.V0 * jax.vmap(jnp.linalg.det)(state.F))
+
+
+def pressure(state: State) -> Float[Array, " n"]:
+    """Each particle's pressure ``-tr(sigma) / dim`` (the viscous pressure included).
+
+    Args:
+        state: the state.
+
+    Returns:
+        ``p``.
+    """
+    return -jnp.trace(state.sigma, axis1=1, axis2=2) / state.F.shape[-1]
+
+
+EULER_FIELDS = ("rho", "u", "p", "e")
+"""The fields ``euler_errors`` compares: density, velocity, pressure, specific internal energy."""
+
+
+def euler_errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Array] | None:
+    """L1 errors of density, velocity, pressure and specific internal energy against an exact solution
+    of the Euler equations, ``sum_p |f_p - f(x_p, t)| V_p`` (``V_p = V0_p det F_p``, the norm of
+    ``int |f - f_exact| dx`` sampled at the particles; 1D).
+
+    The exact solution is the scene's ``solution(x, t)`` (``ShockTube``, ``Noh``), evaluated at the
+    particles' current positions: a Lagrangian method is compared where its particles are.
+
+    Args:
+        scene: the scene.
+        state: the state (``t > 0``; its ``e`` set).
+        body: the reference configuration.
+
+    Returns:
+        ``dict(rho_L1, u_L1, p_L1, e_L1)``, or ``None`` for a scene without an exact Euler solution or a
+        run without an energy equation.
+    """
+    if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
+        return None
+    ex = scene.solution(state.x[:, 0], state.t)
+    V = body.V0 * state.F[:, 0, 0]
+    num = dict(rho=density(state, body), u=state.v[:, 0], p=pressure(state), e=state.e)
+    return {f"{k}_L1": jnp.sum(jnp.abs(num[k] - ex[k]) * V) for k in EULER_FIELDS}

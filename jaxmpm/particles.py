@@ -25,6 +25,8 @@ class Body(eqx.Module):
             ``_util.corner_signs`` (in 1D: left, right).
         boundary: whether a particle was seeded in the first or last cell of the body along any
             axis, ``(n,)``.
+        region: the region of each particle (``jaxmpm.regions``), ``(n,)``; ``None`` for a body of
+            one region.
     """
 
     X: Float[Array, "n dim"]
@@ -34,6 +36,7 @@ class Body(eqx.Module):
     X_corners: Float[Array, "nc dim"]
     corner_ids: Int[Array, "n corners"]
     boundary: Bool[Array, " n"]
+    region: Int[Array, " n"] | None = None
 
     @property
     def n(self) -> int:
@@ -133,6 +136,10 @@ class State(eqx.Module):
         status: failure bitmask (see ``jaxmpm.status``); 0 while the run is healthy.
         fail_step: the step at which the first failure was detected (-1 if none).
         fail_particle: the real particle that failed first (-1 if none).
+        e: specific internal energies ``(n,)``; ``None`` unless a material has an energy equation
+            (``AbstractEOS``; zero on the particles of the other materials).
+        internal: the materials' internal variables, a dict of per-particle arrays ``(n,)``;
+            ``None`` unless a material declares some. A region without a variable holds zeros.
     """
 
     t: Float[Array, ""]
@@ -147,6 +154,8 @@ class State(eqx.Module):
     status: Int[Array, ""]
     fail_step: Int[Array, ""]
     fail_particle: Int[Array, ""]
+    e: Float[Array, " n"] | None = None
+    internal: dict[str, Float[Array, " n"]] | None = None
 
 
 def parallelogram_corners(

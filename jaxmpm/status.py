@@ -10,6 +10,7 @@ CFL = 8
 STENCIL = 16
 SCENE_DATA = 32
 MAX_STEPS = 64
+NEGATIVE_ENERGY = 128
 
 QUANTITY = {
     NONFINITE: "non-finite state (x, v, F or sigma is NaN or inf)",
@@ -19,6 +20,7 @@ QUANTITY = {
     STENCIL: "GIMP domain wider than its stencil (raise GIMP.max_span, or use CPDI or MPQ)",
     SCENE_DATA: "the scene's traction or body force is not finite (past the end of its solution?)",
     MAX_STEPS: "max_steps steps were taken before t_end was reached (raise max_steps)",
+    NEGATIVE_ENERGY: "negative specific internal energy e (the step took more energy than the particle had)",
 }
 
 

@@ -61,10 +61,33 @@ class ArtificialViscosity(eqx.Module):
             ``q``, as in the module's docstring.
         """
         J_old, J_new = det(F_old), det(F_new)
+        c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)
+        return self.pressure_of(J_old, J_new, dt, rho0 / J_new, c, h)
+
+    def pressure_of(
+        self,
+        J_old: Float[Array, " n"],
+        J_new: Float[Array, " n"],
+        dt: Float[Array, ""],
+        rho: Float[Array, " n"],
+        c: Float[Array, " n"],
+        h: Float[Array, ""],
+    ) -> Float[Array, " n"]:
+        """The viscous pressure from the volume ratios, density and sound speed (any material).
+
+        Args:
+            J_old: volume ratios before the step.
+            J_new: volume ratios after the step.
+            dt: the time step.
+            rho: current densities ``rho0 / J_new``.
+            c: sound speeds.
+            h: grid spacing.
+
+        Returns:
+            ``q``, as in the module's docstring.
+        """
         rate = (J_new - J_old) / (dt * J_new)
         compress = jnp.minimum(rate, 0.0)
-        c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)
-        rho = rho0 / J_new
         return rho * (self.c_quad * jnp.square(h * compress) + self.c_lin * c * h * (-compress))
 
     def stress(

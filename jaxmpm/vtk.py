@@ -4,7 +4,8 @@ Legacy VTK, binary (big-endian, as the format requires), which ParaView, VisIt a
 
 - particles: ``UNSTRUCTURED_GRID`` of one vertex cell per particle, point data ``v`` (vector), ``F`` and
   ``sigma`` (3x3 tensors, padded with the identity for ``F`` and zeros for ``sigma`` beyond
-  ``dim``), ``J = det F`` and ``X`` (reference position);
+  ``dim``), ``J = det F``, ``X`` (reference position), ``rho``, ``p``, ``region``, and ``e`` and
+  ``internal.<variable>`` where the run carries them;
 - grid: ``STRUCTURED_POINTS`` over the nodes, point data ``mass`` and ``velocity`` from the
   particle-to-grid transfer the step itself makes (the same stencil and transfer), without the
   artificial particles: what the real body puts on the grid.
@@ -165,15 +166,27 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
         body: the reference configuration.
 
     Returns:
-        ``v``, ``F``, ``sigma``, ``J`` and ``X``, padded to 3 components (``F`` and ``sigma`` to 3x3).
+        ``v``, ``F``, ``sigma``, ``J`` and ``X``, padded to 3 components (``F`` and ``sigma`` to 3x3),
+        ``rho`` (current density), ``p`` (``-tr(sigma) / dim``), ``region`` (0 for a body of one
+        region), and where the run has them ``e`` and ``internal.<variable>``.
     """
-    return {
+    J = np.asarray(det(state.F))
+    dim = state.F.shape[-1]
+    out = {
         "v": _pad_vectors(np.asarray(state.v)),
         "F": _pad_tensors(np.asarray(state.F), fill_identity=True),
         "sigma": _pad_tensors(np.asarray(state.sigma), fill_identity=False),
-        "J": np.asarray(det(state.F)),
+        "J": J,
         "X": _pad_vectors(np.asarray(body.X)),
+        "rho": np.asarray(body.m) / (np.asarray(body.V0) * J),
+        "p": -np.trace(np.asarray(state.sigma), axis1=1, axis2=2) / dim,
+        "region": np.zeros(body.n) if body.region is None else np.asarray(body.region, dtype=float),
     }
+    if state.e is not None:
+        out["e"] = np.asarray(state.e)
+    for k, val in (state.internal or {}).items():
+        out[f"internal.{k}"] = np.asarray(val)
+    return out
 
 
 def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Path]:
@@ -203,6 +216,8 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     needed = ["x", "v", "F", "sigma"]
     needed += ["corners"] if model.interpolator.tracks_corners else []
     needed += ["C"] if model.transfer.affine else []
+    needed += ["e"] if solution.state.e is not None else []
+    needed += [f"internal.{k}" for k in solution.state.internal or {}]
     missing = [f for f in needed if f not in solution.history]
     if missing:
         raise ValueError(f"the saved history lacks {missing}: add them to SaveAt(fields=...)")
@@ -246,4 +261,9 @@ def _state_at(solution, i: int):
 
     names = [n for n in solution.history if n in STATE_FIELDS]
     values = [solution.history[n][i] for n in names]
-    return eqx.tree_at(lambda s: [getattr(s, n) for n in names], solution.state, values)
+    state = eqx.tree_at(lambda s: [getattr(s, n) for n in names], solution.state, values)
+    keys = [n.split(".", 1)[1] for n in solution.history if n.startswith("internal.")]
+    if keys:
+        internal = {**state.internal, **{k: solution.history[f"internal.{k}"][i] for k in keys}}
+        state = eqx.tree_at(lambda s: s.internal, state, internal)
+    return state

@@ -31,6 +31,7 @@ class Gas(jm.AbstractScene):
     exact: ClassVar[None] = None
     initial_position: ClassVar[None] = None
     smooth: ClassVar[None] = None
+    regions: ClassVar[None] = None
 
     traction: Callable | None = eqx.field(static=True, default=None)
     body_force: Callable | None = eqx.field(static=True, default=None)
@@ -126,3 +127,24 @@ def test_affine_matrices_are_in_the_step_only_for_apic(name):
     expected = 3 if name == "apic" else 2  # F, sigma (and C)
     assert (state.C is not None) == (name == "apic")
     assert matrices_in == expected and matrices_out == expected
+
+
+def test_a_two_material_step_holds_both_models_and_nothing_else():
+    """A body of a gas region and a neo-Hookean region: the step holds the gas's power of ``J`` and the
+    solid's logarithm, as many of each as the one-material steps, and no energy equation."""
+    from jaxmpm.geometry import Box
+
+    gas, solid = jm.AdiabaticGas(P0=2.0, gamma=1.4, p_atm=1.0), jm.NeoHookean(lam=2.0, mu=1.0)
+    one = lambda m: jm.Bodies(parts=(jm.Region(Box(0.0, 10.0), m, 1.0),), cells=10, h=0.1)  # noqa: E731
+    two = jm.Bodies(
+        parts=(jm.Region(Box(0.0, 5.0), gas, 1.0), jm.Region(Box(5.0, 10.0) - Box(0.0, 5.0), solid, 2.0)),
+        cells=10,
+        h=0.1,
+    )
+    g, s = primitives(step_jaxpr(one(gas), jm.CPDI())[1]), primitives(step_jaxpr(one(solid), jm.CPDI())[1])
+    state, jaxpr = step_jaxpr(two, jm.CPDI())
+    both = primitives(jaxpr)
+    assert "pow" in g and "log" not in g  # the gas: J^-gamma, no logarithm
+    assert "log" in s and "pow" not in s  # the neo-Hookean solid: ln J, no power
+    assert both.count("pow") == g.count("pow") and both.count("log") == s.count("log")
+    assert state.e is None and state.internal is None

@@ -83,9 +83,11 @@ def _particle(solution: jm.Solution, p: int) -> str:
     X = np.asarray(solution.body.X[p])
     x = np.asarray(solution.state.x[p])
     F = np.asarray(solution.state.F[p])
+    extra = "" if solution.body.region is None else f", region {int(solution.body.region[p])}"
+    extra += "" if solution.state.e is None else f", e = {float(solution.state.e[p]):.6g}"
     if X.shape[0] == 1:
-        return f"X = {X[0]:.6g}, x = {x[0]:.6g}, F = {F[0, 0]:.6g}"
-    return f"X = {_vector(X)}, x = {_vector(x)}, J = det F = {_det(F):.6g}"
+        return f"X = {X[0]:.6g}, x = {x[0]:.6g}, F = {F[0, 0]:.6g}{extra}"
+    return f"X = {_vector(X)}, x = {_vector(x)}, J = det F = {_det(F):.6g}{extra}"
 
 
 def _vector(a) -> str:

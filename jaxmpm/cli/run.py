@@ -1,5 +1,6 @@
 """``jaxmpm run``: run a scene and report its errors (a table, or one JSON object)."""
 
+import dataclasses
 import pathlib
 import time
 
@@ -157,6 +158,7 @@ def command(args) -> int:
         if every < 1:
             raise UsageError(f"--vtk-every must be an integer >= 1, got {every}")
         fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
+        fields += ("e", "internal") if scene.regions is not None else ()  # kept where the run has them
         settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
@@ -350,11 +352,23 @@ def report(
         particles = dict(
             X=floats(sol.body.X), x=floats(st.x), v=floats(st.v), F=floats(st.F), sigma=floats(st.sigma)
         )
+    if scene.regions is not None:  # a body of regions: each particle's region and thermodynamic state
+        particles["rho"] = floats(jm.metrics.density(st, sol.body))
+        particles["p"] = floats(jm.metrics.pressure(st))
+        if st.e is not None:
+            particles["e"] = floats(st.e)
+        particles["region"] = [int(r) for r in np.asarray(sol.body.region)]
+        if st.internal is not None:
+            particles.update({f"internal.{k}": floats(val) for k, val in st.internal.items()})
+    euler = jm.metrics.euler_errors(scene, st, sol.body) if float(st.t) > 0 else None
+    if euler is not None:
+        err = {**err, **euler}
     if as_json:
         out = dict(
             **run,
             t=float(st.t),
             params=params,
+            **({"regions": _regions(scene)} if scene.regions is not None else {}),
             particles=particles,
             errors={k: scalar(v) for k, v in err.items()},
             diagnostics={k: (float(v) if np.ndim(v) == 0 else floats(v)) for k, v in diag.items()},
@@ -385,6 +399,26 @@ def report(
         )
     print(f"compile_s={compile_s:.3f}  wall_s={wall_s:.6f}")
     return 0
+
+
+def _regions(scene) -> list[dict]:
+    """Each region of a scene of regions: its material (name and parameters), density, velocity,
+    energy and particle count, for ``--json``."""
+    out = []
+    for region, count in zip(scene.regions(), scene.layout().counts):
+        mat = region.material
+        fields = {f.name: float(getattr(mat, f.name)) for f in dataclasses.fields(mat)}
+        out.append(
+            dict(
+                material=type(mat).__name__,
+                **fields,
+                rho0=float(region.rho0),
+                velocity=floats(region.velocity) if scene.dim > 1 else float(region.velocity[0]),
+                energy=float(region.energy),
+                particles=count,
+            )
+        )
+    return out
 
 
 def _fmt(v) -> str:

@@ -4,10 +4,14 @@ from ._base import AbstractScene as AbstractScene
 from ._displacement import AbstractDisplacementScene as AbstractDisplacementScene
 from .axis_aligned import AxisAligned as AxisAligned
 from .blast import Blast as Blast
+from .bodies import Bodies as Bodies
 from .gas_expansion import GasExpansion as GasExpansion
 from .gas_slab import GasSlab as GasSlab
+from .interface import Interface as Interface
 from .manufactured import Manufactured as Manufactured
+from .noh import Noh as Noh
 from .riemann import Riemann as Riemann
+from .shock_tube import ShockTube as ShockTube
 from .vacuum_expansion import VacuumExpansion as VacuumExpansion
 from .vibrating_bar import VibratingBar as VibratingBar
 
@@ -22,6 +26,9 @@ SCENES: dict[str, type[AbstractScene]] = {
         GasSlab,
         AxisAligned,
         Blast,
+        ShockTube,
+        Noh,
+        Interface,
     )
 }
 """The one registry of scenes, by the name each is known by (``scene.name``, the command line, a saved

@@ -11,8 +11,9 @@ from jaxtyping import Array, ArrayLike, Float
 from .._checks import check_int, check_positive, check_real
 from .._util import as_float
 from ..grid import Grid
-from ..materials import AbstractMaterial
+from ..materials import AbstractEOS, AbstractMaterial
 from ..particles import Body, seed_box
+from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
 
 
 class AbstractScene(eqx.Module):
@@ -36,7 +37,11 @@ class AbstractScene(eqx.Module):
       ``X -> x`` for a body that starts deformed: centres, corners and traction points are mapped
       by it and ``F = dx/dX`` at the centres;
     - ``smooth``: ``None`` (the exact solution is smooth everywhere) or a method ``(X, t) -> bool``
-      marking the particles away from fronts, where errors are expected to converge.
+      marking the particles away from fronts, where errors are expected to converge;
+    - ``regions``: ``None`` (one body filling the box, of ``material()`` at ``rho0``, starting at
+      ``initial_velocity``) or a method ``() -> tuple[Region, ...]`` (``jaxmpm.regions``): a body
+      made of regions, each a shape with its own material, density, velocity and energy. Its
+      ``layout()`` says which particle belongs to which region, from the shapes alone.
 
     Attributes:
         name: the name the scene is known by (``SCENES``, the command line, a saved run).
@@ -63,6 +68,7 @@ class AbstractScene(eqx.Module):
     exact: eqx.AbstractVar[Callable | None]
     initial_position: eqx.AbstractVar[Callable | None]
     smooth: eqx.AbstractVar[Callable | None]
+    regions: eqx.AbstractVar[Callable | None]
 
     h: eqx.AbstractVar[Float[Array, ""]]
     rho0: eqx.AbstractVar[Float[Array, ""]]
@@ -86,10 +92,18 @@ class AbstractScene(eqx.Module):
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)
         self.material()  # a material checks its own parameters (gamma > 1, P0 > 0, E > 0, ...)
+        if self.regions is not None:
+            regions = self.regions()
+            if not isinstance(regions, tuple) or not all(isinstance(r, Region) for r in regions):
+                raise ValueError(
+                    f"{type(self).__name__}.regions must return a tuple of Region, got {regions!r}"
+                )
+            self.layout()  # shapes with no particle, overlapping regions, regions off the grid
 
     @abc.abstractmethod
-    def material(self) -> AbstractMaterial:
-        """The constitutive model, built from the scene's parameters.
+    def material(self) -> AbstractMaterial | AbstractEOS:
+        """The constitutive model, built from the scene's parameters (of a scene of regions: the
+        material of its first region; each region carries its own).
 
         Returns:
             The material.
@@ -113,8 +127,20 @@ class AbstractScene(eqx.Module):
 
     @property
     def wave_speed(self) -> Float[Array, ""]:
-        """The material's sound speed at rest (``F = I``)."""
-        return self.material().sound_speed(jnp.eye(self.dim, dtype=self.h.dtype), self.rho0)
+        """The material's sound speed at rest (``F = I``); of a scene of regions, the fastest region's."""
+        if self.regions is None:
+            return self.material().sound_speed(jnp.eye(self.dim, dtype=self.h.dtype), self.rho0)
+        return jnp.max(jnp.stack([initial_sound_speed(r, self.dim) for r in self.regions()]))
+
+    def layout(self) -> Layout | None:
+        """Which particles the regions keep and where each belongs (``None`` for one region).
+
+        Returns:
+            The static ``jaxmpm.regions.Layout``, or ``None``.
+        """
+        if self.regions is None:
+            return None
+        return layout((self.cells,) * self.dim, self.ppc, tuple(r.shape for r in self.regions()), self.pad)
 
     def grid(self) -> Grid:
         """The background grid: ``cells + 2 pad + 1`` nodes along each axis from ``-pad h``.
@@ -129,12 +155,16 @@ class AbstractScene(eqx.Module):
         return Grid.box(x_min, self.h, (self.cells + 2 * self.pad + 1,) * self.dim)
 
     def body(self) -> Body:
-        """The body's particles, seeded by ``particles.seed_box``.
+        """The body's particles, seeded by ``particles.seed_box`` (a scene of regions: by
+        ``regions.seed_regions``, on the lattice points inside its regions).
 
         Returns:
             The ``Body``.
         """
-        return seed_box((self.cells,) * self.dim, self.ppc, self.h, self.rho0)
+        if self.regions is None:
+            return seed_box((self.cells,) * self.dim, self.ppc, self.h, self.rho0)
+        rho0 = jnp.stack([r.rho0 for r in self.regions()])
+        return seed_regions(self.layout(), self.h, rho0.astype(self.h.dtype))
 
     @classmethod
     def parameters(cls) -> dict[str, object]:

@@ -42,6 +42,7 @@ class AxisAligned(AbstractDisplacementScene):
     )
     left: ClassVar[str] = "symmetry"
     right: ClassVar[str] = "symmetry"
+    regions: ClassVar[None] = None
     traction: ClassVar[None] = None
     initial_position: ClassVar[None] = None
     smooth: ClassVar[None] = None

@@ -47,6 +47,7 @@ class Blast(AbstractScene):
         "2D/3D blast: a gas charge at P0 expanding against p_atm (quarter, symmetry planes)"
     )
     right: ClassVar[str] = "free"
+    regions: ClassVar[None] = None
     body_force: ClassVar[None] = None
     traction: ClassVar[None] = None
     exact: ClassVar[None] = None

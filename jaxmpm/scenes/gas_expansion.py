@@ -48,6 +48,7 @@ class GasExpansion(AbstractScene):
     )
     left: ClassVar[str] = "free"
     right: ClassVar[str] = "free"
+    regions: ClassVar[None] = None
     body_force: ClassVar[None] = None
     initial_position: ClassVar[None] = None
     smooth: ClassVar[None] = None

@@ -38,6 +38,7 @@ class GasSlab(AbstractScene):
     dim: ClassVar[int] = 1
     left: ClassVar[str] = "wall"
     right: ClassVar[str] = "free"
+    regions: ClassVar[None] = None
     body_force: ClassVar[None] = None
     traction: ClassVar[None] = None
     exact: ClassVar[None] = None

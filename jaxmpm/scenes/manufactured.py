@@ -49,6 +49,7 @@ class Manufactured(AbstractDisplacementScene):
         "1D manufactured solution, u = A sin(pi X/L) sin(c pi t/L), neo-Hookean or gas"
     )
     dim: ClassVar[int] = 1
+    regions: ClassVar[None] = None
     smooth: ClassVar[None] = None
 
     A: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e-4)

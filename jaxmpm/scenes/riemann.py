@@ -39,6 +39,7 @@ class Riemann(AbstractScene):
     dim: ClassVar[int] = 1
     left: ClassVar[str] = "free"
     right: ClassVar[str] = "free"
+    regions: ClassVar[None] = None
     body_force: ClassVar[None] = None
 
     F_left: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)

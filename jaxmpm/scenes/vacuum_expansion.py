@@ -35,6 +35,7 @@ class VacuumExpansion(AbstractScene):
     dim: ClassVar[int] = 1
     left: ClassVar[str] = "wall"
     right: ClassVar[str] = "free"
+    regions: ClassVar[None] = None
     body_force: ClassVar[None] = None
     traction: ClassVar[None] = None
     initial_position: ClassVar[None] = None

@@ -1,7 +1,9 @@
 """Observed orders of convergence on the verification ladder.
 
 Every scene with an exact answer runs to a fixed end time with the CFL-limited step (``dt`` shrinks
-with ``h``) at four or more resolutions, for each interpolator and transfer. The observed order of an
+with ``h``) at four or more resolutions, for each interpolator and transfer. The shock cases (Sod's
+shock tube, Noh's problem: gas with an energy equation) are measured by L1 errors against the exact
+solution of the Euler equations, with artificial viscosity. The observed order of an
 error ``e`` is the least-squares slope of ``log e`` against ``log(1/h)`` over the resolutions that
 finished; the order of the finest pair is reported beside it. Scenes with fronts (vacuum expansion,
 Riemann problem) are measured away from them (``scene.smooth``). A run that broke down is listed
@@ -115,6 +117,224 @@ def cases(small: bool = False) -> list[Case]:
             note="shock tube, artificial viscosity, errors away from the waves' edges",
         ),
     ]
+
+
+EULER_ERRORS = ("rho_L1", "u_L1", "p_L1", "e_L1")
+"""The shock cases' errors (``jaxmpm.metrics.euler_errors``): L1 norms of density, velocity, pressure
+and specific internal energy against the exact solution of the Euler equations."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ShockCase:
+    """A shock problem of the Euler equations (gas with an energy equation) at several resolutions."""
+
+    name: str
+    make: Callable[[int], jm.AbstractScene]  # cells -> scene
+    t_end: float
+    cells: tuple[int, ...]
+    cfl: float = 0.2
+    note: str = ""
+
+
+def shock_cases(small: bool = False) -> list[ShockCase]:
+    """The shock rungs: Sod's shock tube and Noh's problem, with artificial viscosity.
+
+    Args:
+        small: coarser grids.
+
+    Returns:
+        One ``ShockCase`` per problem.
+    """
+    res = (50, 100, 200) if small else (100, 200, 400)
+    return [
+        ShockCase(
+            "shock-tube (Sod)",
+            lambda n: jm.ShockTube(cells=n, h=1.0 / n),
+            0.2,
+            res,
+            note="walls at 0 and 1, t = 0.2",
+        ),
+        ShockCase(
+            "noh",
+            lambda n: jm.Noh(cells=n, h=1.0 / n),
+            0.6,
+            res,
+            note="gamma = 5/3, wall at 0, t = 0.6: shock at 0.2, rho = 4 behind it",
+        ),
+    ]
+
+
+def _noh_measures(scene, sol) -> dict:
+    """Noh's shock position (where the density falls through 2.5) in cells from ``t / 3``, the mean
+    density between 0.05 and 3 cells short of the shock, and how many particles from the wall the
+    density stays below 90% of 4 (the wall heating)."""
+    x = np.asarray(sol.state.x[:, 0])
+    rho = np.asarray(jm.density(sol.state, sol.body))
+    h, shock = float(scene.h), float(scene.shock_speed) * float(sol.state.t)
+    front = float(x[np.argmax((rho < 2.5) & (x > 0.5 * shock))])
+    plateau = (x > 0.05) & (x < shock - 3 * h)
+    return dict(
+        shock_cells=(front - shock) / h,
+        plateau_rho=float(rho[plateau].mean()),
+        wall_heated=int(np.argmax(rho > 0.9 * 4.0)),
+    )
+
+
+def run_shock_case(case: ShockCase, method: str, transfer: str) -> list[dict]:
+    """Run one shock case at each of its resolutions, with artificial viscosity.
+
+    Args:
+        case: the case.
+        method: the interpolator's label (``METHODS``).
+        transfer: the transfer's label (``TRANSFERS``).
+
+    Returns:
+        One row per resolution: ``EULER_ERRORS``, the relative drift of the total energy (kinetic plus
+        internal; the walls do no work), for Noh its shock position and plateau, and the status.
+    """
+    rows = []
+    for n in case.cells:
+        sc = case.make(n)
+        model = jm.Model(sc, METHODS[method](), TRANSFERS[transfer](), viscosity=jm.ArtificialViscosity())
+        prepared = jm.setup(model)
+        e0 = float(jm.diagnostics(sc, jm.initial_state(model, prepared), prepared.body)["energy"])
+        t0 = time.perf_counter()
+        sol = jm.simulate(
+            sc,
+            METHODS[method](),
+            t_end=case.t_end,
+            cfl=case.cfl,
+            max_steps=int(10 * n / case.cfl) + 100,
+            transfer=TRANSFERS[transfer](),
+            viscosity=jm.ArtificialViscosity(),
+            throw=False,
+        )
+        seconds = time.perf_counter() - t0
+        row = dict(
+            scene=case.name, method=method, transfer=transfer, cells=n, h=float(sc.h), t_end=case.t_end
+        )
+        row.update(steps=int(sol.state.step), seconds=seconds)
+        extra = ("shock_cells", "plateau_rho", "wall_heated") if isinstance(sc, jm.Noh) else ()
+        fail = sol.failure()
+        if fail is None:
+            err = jm.euler_errors(sc, sol.state, sol.body)
+            row.update({k: float(err[k]) for k in EULER_ERRORS})
+            row["energy_drift"] = float(jm.diagnostics(sc, sol.state, sol.body)["energy"]) / e0 - 1.0
+            if extra:
+                row.update(_noh_measures(sc, sol))
+            row["status"] = "ok"
+        else:
+            row.update(dict.fromkeys(EULER_ERRORS + ("energy_drift",) + extra, float("nan")))
+            what = "; ".join(fail["quantities"])
+            row["status"] = f"broke down at step {fail['step']}, particle {fail['particle']}: {what}"
+        rows.append(row)
+    return rows
+
+
+def energy_drift(method: str, cells: int) -> dict:
+    """The total energy's drift where nothing dissipates it: an ideal-gas slab (``rho = 1``, ``p = 1``,
+    ``gamma = 1.4``, at rest) expanding into vacuum from both free ends, without viscosity or walls,
+    to ``t = 0.2`` (FLIP, CFL 0.2).
+
+    Args:
+        method: the interpolator's label (``METHODS``).
+        cells: cells of the slab (``h = 1 / cells``).
+
+    Returns:
+        ``method``, ``cells``, ``steps``, ``energy_drift`` (relative) and ``status``.
+    """
+    from jaxmpm.geometry import Box
+
+    gas = jm.IdealGas(gamma=1.4)
+    sc = jm.Bodies(
+        parts=(jm.Region(Box(0.0, float(cells)), gas, 1.0, 0.0, 2.5),),
+        cells=cells,
+        h=1.0 / cells,
+        pad=2 * cells,
+    )
+    model = jm.Model(sc, METHODS[method](), TRANSFERS["FLIP"]())
+    prepared = jm.setup(model)
+    e0 = float(jm.diagnostics(sc, jm.initial_state(model, prepared), prepared.body)["energy"])
+    sol = jm.simulate(sc, METHODS[method](), t_end=0.2, cfl=0.2, max_steps=40 * cells, throw=False)
+    fail = sol.failure()
+    row = dict(method=method, cells=cells, steps=int(sol.state.step))
+    if fail is None:
+        row.update(
+            energy_drift=float(jm.diagnostics(sc, sol.state, sol.body)["energy"]) / e0 - 1.0, status="ok"
+        )
+    else:
+        what = "; ".join(fail["quantities"])
+        row.update(energy_drift=float("nan"), status=f"broke down at step {fail['step']}: {what}")
+    return row
+
+
+def shock_orders(rows: list[dict]) -> list[dict]:
+    """The observed orders of the shock cases' L1 errors, per scene, method and transfer.
+
+    Args:
+        rows: the ``run_shock_case`` rows.
+
+    Returns:
+        One row per scene, method and transfer: each error's order (fit and finest pair) and finest
+        value, the energy drift at the finest resolution, Noh's measures there, and the breakdowns.
+    """
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["scene"], r["method"], r["transfer"]), []).append(r)
+    out = []
+    for (scene, method, transfer), rs in groups.items():
+        o = dict(scene=scene, method=method, transfer=transfer)
+        for k in EULER_ERRORS:
+            o[f"{k}_order"], o[f"{k}_order_finest"] = fit_order([r["h"] for r in rs], [r[k] for r in rs])
+            o[f"{k}_finest"] = rs[-1][k]
+        o["energy_drift_finest"] = rs[-1]["energy_drift"]
+        for k in ("shock_cells", "plateau_rho", "wall_heated"):
+            if k in rs[-1]:
+                o[f"{k}_finest"] = rs[-1][k]
+        o["failures"] = "; ".join(f"{r['cells']} cells: {r['status']}" for r in rs if r["status"] != "ok")
+        out.append(o)
+    return out
+
+
+def shock_markdown(order_rows: list[dict], all_cases: list[ShockCase]) -> str:
+    """The shock cases' orders as markdown tables, one per case.
+
+    Args:
+        order_rows: what ``shock_orders`` returns.
+        all_cases: the cases, in order.
+
+    Returns:
+        The tables.
+    """
+    lines = []
+    for case in all_cases:
+        rs = [o for o in order_rows if o["scene"] == case.name]
+        if not rs:
+            continue
+        noh = "shock_cells_finest" in rs[0]
+        lines.append(
+            f"**{case.name}** ({case.note}; cells {', '.join(map(str, case.cells))}, CFL {case.cfl})\n"
+        )
+        head = (
+            "| method | transfer | order rho | order u | order p | order e | rho L1 (finest) | energy drift "
+        )
+        head += "| shock - t/3 (cells) | plateau rho | wall-heated particles " if noh else ""
+        lines.append(head + "| breakdowns |")
+        lines.append("|---" * (9 + (3 if noh else 0)) + "|")
+        for o in rs:
+            row = (
+                f"| {o['method']} | {o['transfer']} "
+                + "".join(f"| {_f(o[f'{k}_order'])} ({_f(o[f'{k}_order_finest'])}) " for k in EULER_ERRORS)
+                + f"| {_f(o['rho_L1_finest'], '.2e')} | {_f(o['energy_drift_finest'], '.1e')} "
+            )
+            if noh:
+                row += (
+                    f"| {_f(o['shock_cells_finest'], '.1f')} | {_f(o['plateau_rho_finest'], '.3f')} "
+                    f"| {_f(float(o['wall_heated_finest']), '.0f')} "
+                )
+            lines.append(row + f"| {o['failures'] or '-'} |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def run_case(case: Case, method: str, transfer: str) -> list[dict]:
@@ -253,7 +473,8 @@ def main(
     scenes=None,
     release: Callable[[], object] | None = None,
 ) -> dict:
-    """Run the ladder; write ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json`` to ``out``.
+    """Run the ladder; write ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json`` to ``out``, and
+    for the shock cases ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``.
 
     Needs float64 on (``jaxmpm study`` switches it on).
 
@@ -267,7 +488,8 @@ def main(
             again (the command line passes ``jax.clear_caches``).
 
     Returns:
-        ``runs`` (one row per run) and ``orders`` (one row per scene, method and transfer).
+        ``runs`` (one row per run) and ``orders`` (one row per scene, method and transfer), and
+        ``shock_runs`` and ``shock_orders`` for the shock cases.
 
     Raises:
         RuntimeError: float64 is off.
@@ -276,8 +498,73 @@ def main(
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     all_cases = [c for c in cases(small) if scenes is None or c.name in scenes]
+    all_shocks = [c for c in shock_cases(small) if scenes is None or c.name in scenes]
     transfers = transfers or (("FLIP",) if small else tuple(TRANSFERS))
     methods = methods or (("SPQ", "CPDI", "MPQ") if small else tuple(METHODS))
+    result = {}
+    if all_cases:
+        result = _ladder(outdir, all_cases, methods, transfers, release)
+    if all_shocks:
+        result.update(_shocks(outdir, all_shocks, methods, transfers, release))
+    return result
+
+
+def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
+    """Run the shock cases (FLIP only, unless ``transfers`` names others); write ``shocks.md``,
+    ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``."""
+    used = transfers if transfers != tuple(TRANSFERS) else ("FLIP",)
+    rows = []
+    for case in all_cases:
+        for method in methods:
+            for transfer in used:
+                rows.extend(run_shock_case(case, method, transfer))
+        if release is not None:
+            release()
+    order_rows = shock_orders(rows)
+    res = all_cases[0].cells
+    drift = [energy_drift(method, n) for method in methods for n in res]
+    if release is not None:
+        release()
+    head = (
+        "# Shocks: observed orders of convergence\n\n"
+        "L1 errors at the end time of density, velocity, pressure and specific internal energy against "
+        "the exact solution, at the particles' positions (`jaxmpm.metrics.euler_errors`). Order: "
+        "least-squares slope over the resolutions that finished (in brackets: the finest pair). Ideal "
+        "gas with the energy equation, artificial viscosity (c_quad 2, c_lin 0.2), 2 particles per "
+        f"cell, {', '.join(used)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
+        "the total (kinetic plus internal) energy's relative change at the finest resolution.\n\n"
+    )
+    text = head + shock_markdown(order_rows, all_cases)
+    text += (
+        "\n**Energy without dissipation** (an ideal-gas slab, rho = 1, p = 1, gamma = 1.4, expanding into "
+        "vacuum from both free ends: no viscosity, no walls, FLIP, CFL 0.2, to t = 0.2): the total "
+        "energy's relative drift.\n\n"
+        "| method | " + " | ".join(f"{n} cells" for n in res) + " |\n"
+        "|---|" + "---|" * len(res) + "\n"
+    )
+    for method in methods:
+        cells = [r for r in drift if r["method"] == method]
+        text += (
+            f"| {method} | "
+            + " | ".join(_f(r["energy_drift"], ".1e") if r["status"] == "ok" else r["status"] for r in cells)
+            + " |\n"
+        )
+    (outdir / "shocks.md").write_text(text)
+    for name, table in (("shock_runs.csv", rows), ("shocks.csv", order_rows)):
+        fields = list(dict.fromkeys(k for r in table for k in r))
+        with open(outdir / name, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            w.writerows(table)
+    (outdir / "shocks.json").write_text(
+        json.dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1)
+    )
+    print(text)
+    return dict(shock_runs=rows, shock_orders=order_rows, energy_drift=drift)
+
+
+def _ladder(outdir, all_cases, methods, transfers, release) -> dict:
+    """Run the smooth cases; write ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json``."""
     rows = []
     for case in all_cases:
         for method in methods:

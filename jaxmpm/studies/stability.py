@@ -14,6 +14,10 @@ The solver's own stable-step check (``cfl_limit``) is switched off here, so that
 actually happens; with the default ``cfl_limit=1.0`` those runs stop at step 1 with "time step beyond
 the stable limit". All members of one interpolator run as one ``vmap``-ed, compiled call, each with
 its own status: one member breaking down stops nothing else.
+
+A stiff shock tube (pressure ratio 1e5, density ratio 1e3, ideal gas with the energy equation and
+artificial viscosity) runs at the same CFL numbers for each interpolator, judged by its L1 density
+error against the exact solution.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ SHORT = {
     st_bits.STENCIL: "stencil",
     st_bits.SCENE_DATA: "data",
     st_bits.MAX_STEPS: "steps",
+    st_bits.NEGATIVE_ENERGY: "e<0",
 }
 
 
@@ -246,6 +251,97 @@ def markdown(results: list[dict], labels: list[str]) -> str:
     return "\n".join(lines)
 
 
+STIFF = dict(rho_l=1.0, p_l=1.0, rho_r=1e-3, p_r=1e-5)
+"""The stiff shock tube: pressure ratio 1e5, density ratio 1e3, ideal gas gamma = 1.4, at rest."""
+STIFF_T = 0.15
+"""Its end time: the shock (speed 3.4) is then 0.52 from the interface, short of the wall."""
+STIFF_TOL = 0.05
+"""A stiff-tube run is accurate when its L1 errors of density, velocity and pressure are each at most
+this fraction of the exact solution's L1 norm of that field (``int |f| dx``)."""
+
+
+def shock_sweep(method: str, small: bool = False) -> list[dict]:
+    """The stiff shock tube (``STIFF``) at each CFL number, with artificial viscosity: one compiled run
+    per interpolator, the CFL number traced.
+
+    Args:
+        method: the interpolator's label (``METHODS``).
+        small: 100 cells instead of 200.
+
+    Returns:
+        One result per CFL number: its status, failure step and particle, steps, the relative L1
+        errors of density, velocity and pressure (``rho_L1_rel``, ``u_L1_rel``, ``p_L1_rel``), their
+        largest (``L1_rel``), and the ``verdict`` (accurate, inaccurate or broken at step k on
+        particle p).
+    """
+    import jax.numpy as jnp
+
+    cells = 100 if small else 200
+    scene = jm.ShockTube(cells=cells, h=1.0 / cells, **STIFF)
+    x = jnp.linspace(0.0, 1.0, 20_001)
+    exact = scene.solution(x, STIFF_T)
+    norms = {k: float(jnp.mean(jnp.abs(exact[k]))) for k in ("rho", "u", "p")}  # int_0^1 |f| dx
+    out = []
+    for cfl in CFLS:
+        t0 = time.perf_counter()
+        sol = jm.simulate(
+            scene,
+            METHODS[method](),
+            t_end=STIFF_T,
+            cfl=cfl,
+            max_steps=100 * cells,
+            viscosity=jm.ArtificialViscosity(),
+            cfl_limit=None,
+            throw=False,
+        )
+        r = dict(method=method, cells=cells, cfl=cfl, seconds=time.perf_counter() - t0)
+        st = sol.state
+        r.update(status=int(st.status), fail_step=int(st.fail_step), fail_particle=int(st.fail_particle))
+        r.update(
+            steps=int(st.step),
+            **dict.fromkeys(("rho_L1_rel", "u_L1_rel", "p_L1_rel", "L1_rel"), float("nan")),
+        )
+        if r["status"]:
+            what = "; ".join(st_bits.describe(r["status"]))
+            who = f"particle {r['fail_particle']}" if r["fail_particle"] >= 0 else "the run"
+            r["verdict"] = f"broken at step {r['fail_step']} on {who}: {what}"
+        else:
+            err = jm.euler_errors(scene, st, sol.body)
+            for k, norm in norms.items():
+                r[f"{k}_L1_rel"] = float(err[f"{k}_L1"]) / norm
+            r["L1_rel"] = max(r[f"{k}_L1_rel"] for k in norms)
+            if not np.isfinite(r["L1_rel"]):  # would be a silent NaN: never expected
+                r["verdict"] = "SILENT NON-FINITE"
+            else:
+                r["verdict"] = "accurate" if r["L1_rel"] <= STIFF_TOL else "inaccurate"
+        out.append(r)
+    return out
+
+
+def shock_markdown(results: list[dict]) -> str:
+    """The stiff shock tube's table: one row per interpolator, one column per CFL number.
+
+    Args:
+        results: the ``shock_sweep`` results.
+
+    Returns:
+        The table; each cell the largest relative L1 error (density, velocity, pressure), or the first
+        failed quantity and its step.
+    """
+
+    def code(r):
+        if not r["status"]:
+            return f"{r['L1_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
+        first = min(b for b in SHORT if r["status"] & b)
+        return f"{SHORT[first]}@{r['fail_step']}"
+
+    lines = ["| method | " + " | ".join(f"CFL {c:g}" for c in CFLS) + " |", "|---|" + "---|" * len(CFLS)]
+    for method in dict.fromkeys(r["method"] for r in results):
+        row = [code(r) for r in results if r["method"] == method]
+        lines.append(f"| {method} | " + " | ".join(row) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def run_all(
     small: bool = False,
     methods=None,
@@ -278,7 +374,8 @@ def run_all(
 
 
 def main(out: str, small: bool = False, release: Callable[[], object] | None = None) -> dict:
-    """Run the sweep; write ``stability.{md,csv,json,png}`` to ``out``.
+    """Run the sweep and the stiff shock tube; write ``stability.{md,csv,json,png}`` and
+    ``stiff_shock.json`` to ``out``.
 
     Needs float64 on (``jaxmpm study`` switches it on).
 
@@ -288,7 +385,8 @@ def main(out: str, small: bool = False, release: Callable[[], object] | None = N
         release: as for ``run_all``.
 
     Returns:
-        ``results`` (one dict per run) and ``labels`` (the cases).
+        ``results`` (one dict per run), ``labels`` (the cases) and ``stiff_shock`` (one dict per
+        interpolator and CFL number of the stiff shock tube).
 
     Raises:
         RuntimeError: float64 is off.
@@ -308,7 +406,21 @@ def main(out: str, small: bool = False, release: Callable[[], object] | None = N
         f"{counts['accurate']} accurate, {counts['inaccurate']} inaccurate, {counts['broken']} broken, "
         f"{counts.get('SILENT', 0)} silent non-finite.\n\n"
     )
+    methods = list(dict.fromkeys(r["method"] for r in results))
+    shocks = []
+    for method in methods:
+        shocks.extend(shock_sweep(method, small))
+        if release is not None:
+            release()
+    cells = shocks[0]["cells"]
     text = head + markdown(results, labels)
+    text += (
+        f"\n**Stiff shock tube** (pressure ratio 1e5, density ratio 1e3: left rho = 1, p = 1, right rho = "
+        f"1e-3, p = 1e-5, gamma = 1.4; {cells} cells x 2 ppc, artificial viscosity, to t = {STIFF_T:g}). "
+        "Each cell: the largest of the L1 errors of density, velocity and pressure, each relative to the "
+        f"exact field's int |f| dx (accurate <= {STIFF_TOL:g}), or the first failed quantity and its "
+        "step.\n\n" + shock_markdown(shocks)
+    )
     (outdir / "stability.md").write_text(text)
     fields = list(results[0])
     with open(outdir / "stability.csv", "w", newline="") as f:
@@ -316,6 +428,7 @@ def main(out: str, small: bool = False, release: Callable[[], object] | None = N
         w.writeheader()
         w.writerows(results)
     (outdir / "stability.json").write_text(json.dumps(results, indent=1, default=float))
+    (outdir / "stiff_shock.json").write_text(json.dumps(shocks, indent=1, default=float))
     figure(results, labels, outdir / "stability.png")
     print(text)
-    return dict(results=results, labels=labels)
+    return dict(results=results, labels=labels, stiff_shock=shocks)
