@@ -6,13 +6,11 @@ first (the CLI, experiments, notebooks and tests do).
 
 from importlib.metadata import PackageNotFoundError, version
 
-from . import calibrate as calibrate
 from . import exact as exact
 from . import exact_euler as exact_euler
 from . import geometry as geometry
 from . import long_run as long_run
 from . import metrics as metrics
-from . import reference as reference
 from . import regions as regions
 from . import sensitivity as sensitivity
 from . import status as status
@@ -112,6 +110,22 @@ from .transfers import PIC as PIC
 from .transfers import TRANSFERS as TRANSFERS
 from .transfers import AbstractTransfer as AbstractTransfer
 from .viscosity import ArtificialViscosity as ArtificialViscosity
+
+_LAZY = ("calibrate", "reference")
+"""Submodules imported on first use: they bring optax and diffrax, which a run does not need."""
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_LAZY))
+
 
 try:
     __version__ = version("jaxmpm")
