@@ -277,12 +277,50 @@ class _Recorder:
         _write_npz(path, arrays)
 
 
+class InterruptLatch:
+    """A SIGINT handler that raises ``KeyboardInterrupt`` and remembers that it did.
+
+    Python ignores an exception raised where it cannot propagate (a garbage-collector callback, a
+    ``__del__``): with its own handler a Ctrl-C that lands there is lost, and the run goes on. With
+    this one installed, ``wait`` raises the lost interrupt again at its next poll. The command line
+    installs it (``install``); a library caller keeps whatever handler it has.
+
+    Attributes:
+        pending: Ctrl-C was pressed.
+    """
+
+    def __init__(self):
+        self.pending = False
+
+    def __call__(self, signum, frame):
+        self.pending = True
+        raise KeyboardInterrupt
+
+    @classmethod
+    def install(cls) -> InterruptLatch:
+        """Make a new latch the process's SIGINT handler (an entry point's choice: global state).
+
+        Returns:
+            The latch.
+        """
+        latch = cls()
+        signal.signal(signal.SIGINT, latch)
+        return latch
+
+
+def _lost_interrupt() -> bool:
+    """Whether an installed ``InterruptLatch`` saw a Ctrl-C (raised where Python may have ignored it)."""
+    handler = signal.getsignal(signal.SIGINT)
+    return isinstance(handler, InterruptLatch) and handler.pending
+
+
 class _DeferInterrupt:
     """Hold Ctrl-C back while the host commits a finished chunk or writes the file.
 
-    In the main thread, with Python's own SIGINT handler installed, a SIGINT that arrives inside the
-    block is noted (``pending``) rather than raised, so that a chunk is either wholly recorded (and
-    saved) or not at all. Elsewhere (another thread, a handler of the user's) it changes nothing.
+    In the main thread, with Python's own SIGINT handler or an ``InterruptLatch`` installed, a SIGINT
+    that arrives inside the block is noted (``pending``) rather than raised, so that a chunk is either
+    wholly recorded (and saved) or not at all. Elsewhere (another thread, a handler of the user's) it
+    changes nothing.
     """
 
     def __init__(self):
@@ -293,9 +331,9 @@ class _DeferInterrupt:
         self.pending = True
 
     def __enter__(self):
-        if (
-            threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        if threading.current_thread() is threading.main_thread() and (
+            signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            or isinstance(signal.getsignal(signal.SIGINT), InterruptLatch)
         ):
             self._previous = signal.signal(signal.SIGINT, self._note)
         return self
@@ -320,13 +358,18 @@ def wait(tree):
         ``tree``, computed.
 
     Raises:
-        KeyboardInterrupt: Ctrl-C while waiting (the computation is abandoned, not stopped).
+        KeyboardInterrupt: Ctrl-C while waiting, or earlier where Python ignored it (an
+            ``InterruptLatch`` remembers it; the computation is abandoned, not stopped).
     """
     t0 = time.perf_counter()
     for leaf in jax.tree_util.tree_leaves(tree):
         if isinstance(leaf, jax.Array):
             while not leaf.is_ready():
+                if _lost_interrupt():
+                    raise KeyboardInterrupt
                 time.sleep(min(_POLL_S, max(1e-4, 0.05 * (time.perf_counter() - t0))))
+    if _lost_interrupt():
+        raise KeyboardInterrupt
     return tree
 
 

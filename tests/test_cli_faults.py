@@ -123,17 +123,45 @@ def test_ctrl_c_stops_a_plain_run_within_a_second():
         "1",
     ]
     procs = [_cli(*common, *timing) for timing in timings]
-    time.sleep(12)  # past start-up and compilation
-    for p in procs:
-        assert p.poll() is None, p.communicate()
-    for timing, p in zip(timings, procs):
-        t0 = time.perf_counter()
-        p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=60)
-        waited = time.perf_counter() - t0
-        assert p.returncode == 130, (timing, err)
-        assert one_line(err).startswith("jaxmpm: interrupted at step "), timing
-        assert waited < 1.5, (timing, waited)
+    try:
+        time.sleep(12)  # past start-up and compilation
+        for p in procs:
+            assert p.poll() is None, p.communicate()
+        for timing, p in zip(timings, procs):
+            t0 = time.perf_counter()
+            p.send_signal(signal.SIGINT)
+            out, err = p.communicate(timeout=60)
+            waited = time.perf_counter() - t0
+            assert p.returncode == 130, (timing, err)
+            assert one_line(err).startswith("jaxmpm: interrupted at step "), timing
+            assert waited < 1.5, (timing, waited)
+    finally:  # a run that did not stop must not go on computing after the test
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+
+
+def test_a_ctrl_c_that_python_ignored_is_raised_at_the_next_poll():
+    """Python ignores a KeyboardInterrupt raised inside a garbage-collector callback (JAX registers
+    one); the command line's latch remembers the Ctrl-C, and the next poll of a running chunk raises
+    it, so the run stops instead of going on computing."""
+    import jax.numpy as jnp
+
+    from jaxmpm.long_run import InterruptLatch, wait
+
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        latch = InterruptLatch.install()
+        assert wait({"a": jnp.ones(3)})["a"].shape == (3,)  # nothing pressed: it waits and returns
+        try:
+            latch(signal.SIGINT, None)  # as if the signal arrived
+        except KeyboardInterrupt:
+            pass  # ... and the exception was lost where it was raised
+        with pytest.raises(KeyboardInterrupt):
+            wait({"a": jnp.ones(3)})
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_output_into_a_closed_pipe_is_quiet():

@@ -8,9 +8,11 @@ kept stable (extended, never renamed).
 
 import os
 import sys
+import threading
 
 import jax
 
+from ..long_run import InterruptLatch
 from . import bench, calibrate, ensemble, resume, run, scenes, study
 from ._common import Breakdown, Parser, UsageError
 
@@ -46,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
         is closed by its reader (``jaxmpm ... | head``), silently.
     """
     jax.config.update("jax_enable_x64", True)
+    if threading.current_thread() is threading.main_thread():
+        InterruptLatch.install()  # a Ctrl-C that Python ignores (in a gc callback) is not lost
     try:
         args = parser().parse_args(argv)
         return args.handler(args)
