@@ -509,6 +509,14 @@ def main(
     return result
 
 
+def _write_csv(path: pathlib.Path, table: list[dict]) -> None:
+    """Write rows to a CSV file, with every key any row has as a column (in first-seen order)."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in table for k in r)))
+        w.writeheader()
+        w.writerows(table)
+
+
 def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
     """Run the shock cases (FLIP only, unless ``transfers`` names others); write ``shocks.md``,
     ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``."""
@@ -550,12 +558,8 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
             + " |\n"
         )
     (outdir / "shocks.md").write_text(text)
-    for name, table in (("shock_runs.csv", rows), ("shocks.csv", order_rows)):
-        fields = list(dict.fromkeys(k for r in table for k in r))
-        with open(outdir / name, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=fields)
-            w.writeheader()
-            w.writerows(table)
+    _write_csv(outdir / "shock_runs.csv", rows)
+    _write_csv(outdir / "shocks.csv", order_rows)
     (outdir / "shocks.json").write_text(
         json.dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1)
     )
@@ -581,11 +585,8 @@ def _ladder(outdir, all_cases, methods, transfers, release) -> dict:
     )
     text = head + markdown(order_rows, all_cases)
     (outdir / "orders.md").write_text(text)
-    for name, table in (("runs.csv", rows), ("orders.csv", order_rows)):
-        with open(outdir / name, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(table[0]))
-            w.writeheader()
-            w.writerows(table)
+    _write_csv(outdir / "runs.csv", rows)
+    _write_csv(outdir / "orders.csv", order_rows)
     (outdir / "orders.json").write_text(json.dumps(dict(runs=rows, orders=order_rows), indent=1))
     print(text)
     return dict(runs=rows, orders=order_rows)
