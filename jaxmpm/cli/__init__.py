@@ -7,6 +7,7 @@ kept stable (extended, never renamed).
 """
 
 import os
+import signal
 import sys
 import threading
 
@@ -48,8 +49,18 @@ def main(argv: list[str] | None = None) -> int:
         is closed by its reader (``jaxmpm ... | head``), silently.
     """
     jax.config.update("jax_enable_x64", True)
-    if threading.current_thread() is threading.main_thread():
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGINT) if main_thread else None
+    if main_thread:
         InterruptLatch.install()  # a Ctrl-C that Python ignores (in a gc callback) is not lost
+    try:
+        return _dispatch(argv)
+    finally:
+        if main_thread:  # a caller in this process (a test, a notebook) keeps its own handler
+            signal.signal(signal.SIGINT, previous)
+
+
+def _dispatch(argv):
     try:
         args = parser().parse_args(argv)
         return args.handler(args)
