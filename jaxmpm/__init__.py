@@ -7,7 +7,9 @@ first (the CLI, experiments, notebooks and tests do).
 from importlib.metadata import PackageNotFoundError, version
 
 from . import exact as exact
+from . import exact_detonation as exact_detonation
 from . import exact_euler as exact_euler
+from . import explosives as explosives
 from . import geometry as geometry
 from . import long_run as long_run
 from . import metrics as metrics
@@ -93,6 +95,7 @@ from .scenes import AbstractScene as AbstractScene
 from .scenes import AxisAligned as AxisAligned
 from .scenes import Blast as Blast
 from .scenes import Bodies as Bodies
+from .scenes import Detonation as Detonation
 from .scenes import GasExpansion as GasExpansion
 from .scenes import GasSlab as GasSlab
 from .scenes import Interface as Interface

@@ -23,8 +23,10 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
+from ._checks import is_concrete
 from ._util import contract, det
 from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
+from .explosives import ProgrammedBurn
 from .grid import Grid
 from .interpolators import AbstractInterpolator
 from .interpolators._transfer import any_axis, points_stencil
@@ -132,6 +134,8 @@ def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
             a body of regions that does not fill its box.
     """
     lay = scene.layout()
+    if lay is not None:
+        _check_detonators(scene)
     if lay is None:
         if isinstance(scene.material(), AbstractEOS):
             raise ValueError(
@@ -152,6 +156,22 @@ def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
             f"a traction is supported only on the faces of a box; the regions of {type(scene).__name__} do "
             f"not fill [0, cells]^dim (curved and inner boundaries are free surfaces of zero traction)"
         )
+
+
+def _check_detonators(scene: AbstractScene) -> None:
+    """A programmed burn's detonators lie in the scene's box ``[0, cells h]^dim`` (checked where concrete)."""
+    for k, region in enumerate(scene.regions()):
+        burn = region.material
+        if not isinstance(burn, ProgrammedBurn) or not is_concrete(burn.points) or not is_concrete(scene.h):
+            continue
+        points, top = np.asarray(burn.points), float(scene.cells * scene.h)
+        outside = np.any((points < 0.0) | (points > top), axis=1)
+        if points.shape[1] != scene.dim or outside.any():
+            bad = points[np.argmax(outside)] if outside.any() else points[0]
+            raise ValueError(
+                f"region {k}: a detonator of its ProgrammedBurn lies outside the body's box [0, {top:g}]^"
+                f"{scene.dim}: points[{int(np.argmax(outside))}] = {bad.tolist()}"
+            )
 
 
 class _Group(eqx.Module):
@@ -334,6 +354,9 @@ def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]
             keys = _internal_keys(g.material, F.shape[-1], F.dtype)
             z = _subset(state.internal, keys, g.index)
             c = jax.vmap(g.material.sound_speed)(g.rho0 / det(F), _take(state.e, g.index), z)
+            front = g.material.front_speed()
+            if front is not None:  # a programmed detonation: its front moves at least this fast
+                c = jnp.maximum(c, front)
         elif model.viscosity is None:
             fn = jax.vmap(g.material.sound_speed_from_stress, in_axes=(0, 0, None))
             c = fn(F, _take(state.sigma, g.index), g.rho0)

@@ -258,7 +258,8 @@ class AbstractEOS(eqx.Module):
     viscosity), with the pressure taken at the middle of the step (the trapezoid rule, solved
     exactly because ``p`` is affine in ``e``; Wilkins, "Calculation of elastic-plastic flow", 1964).
 
-    A concrete EOS implements ``pressure_terms``, ``initial_internal`` and ``update_internal``.
+    A concrete EOS implements ``pressure_terms``, ``initial_internal``, ``update_internal`` and
+    ``front_speed``.
     """
 
     @abc.abstractmethod
@@ -308,6 +309,17 @@ class AbstractEOS(eqx.Module):
 
         Returns:
             The new internal variables.
+        """
+
+    @abc.abstractmethod
+    def front_speed(self) -> Float[Array, ""] | None:
+        """The speed of a front the material carries itself (a programmed detonation), or ``None``.
+
+        Information then travels at least this fast, so it bounds the stable time step like a sound
+        speed: ``dt <= CFL h / max(max(c, front_speed) + |v|)``.
+
+        Returns:
+            The speed, or ``None`` for a material without such a front.
         """
 
     def pressure(
@@ -372,6 +384,9 @@ class IdealGas(AbstractEOS):
         del X, t, dt, J_old, J_new
         return z
 
+    def front_speed(self):
+        return None
+
 
 class MieGruneisen(AbstractEOS):
     """Mie-Grueneisen solid on its linear ``Us = c0 + s up`` Hugoniot, with ``rho Gamma = rho_ref Gamma0``.
@@ -417,6 +432,9 @@ class MieGruneisen(AbstractEOS):
     def update_internal(self, z, X, t, dt, J_old, J_new):
         del X, t, dt, J_old, J_new
         return z
+
+    def front_speed(self):
+        return None
 
 
 MIE_GRUNEISEN: dict[str, dict[str, float]] = {

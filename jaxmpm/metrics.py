@@ -289,6 +289,29 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
     )
 
 
+def pressure_error(
+    scene: AbstractScene, state: State, body: Body, where: Bool[Array, " n"] | None = None
+) -> Array | None:
+    """The RMS relative pressure error ``|p - p_exact| / |p_exact|`` against the scene's exact solution.
+
+    Args:
+        scene: the scene.
+        state: the state.
+        body: the reference configuration.
+        where: one bool per particle (e.g. ``smooth_mask``), or ``None`` for all.
+
+    Returns:
+        The error, or ``None`` for a scene without an exact solution.
+    """
+    ex = exact_fields(scene, body, state.t)
+    if ex is None:
+        return None
+    dim = state.F.shape[-1]
+    p_ex = -jnp.trace(ex["sigma"], axis1=1, axis2=2) / dim
+    sq = jnp.square((pressure(state) - p_ex) / jnp.where(p_ex == 0, 1.0, p_ex))
+    return _max_rms(sq, where)[1]
+
+
 def density(state: State, body: Body) -> Float[Array, " n"]:
     """Each particle's current density ``m / (V0 det F)``.
 

@@ -226,7 +226,8 @@ def seed_regions(lay: Layout, h: Float[Array, ""], rho0: Float[Array, " regions"
 
 
 def initial_sound_speed(region: Region, dim: int) -> Float[Array, ""]:
-    """A region's sound speed in its initial state (at rest, ``F = I``).
+    """A region's sound speed in its initial state (at rest, ``F = I``); for an EOS with a front (a
+    programmed detonation) at least the front's speed.
 
     Args:
         region: the region.
@@ -238,5 +239,7 @@ def initial_sound_speed(region: Region, dim: int) -> Float[Array, ""]:
     mat = region.material
     if isinstance(mat, AbstractEOS):
         z = mat.initial_internal(jnp.zeros((dim,), dtype=region.rho0.dtype))
-        return mat.sound_speed(region.rho0, region.energy, z)
+        c = mat.sound_speed(region.rho0, region.energy, z)
+        front = mat.front_speed()
+        return c if front is None else jnp.maximum(c, front)
     return mat.sound_speed(jnp.eye(dim, dtype=region.rho0.dtype), region.rho0)

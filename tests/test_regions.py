@@ -28,6 +28,9 @@ class Tension(jm.AbstractEOS):
     def update_internal(self, z, X, t, dt, J_old, J_new):
         return z
 
+    def front_speed(self):
+        return None
+
 
 class Peak(jm.AbstractEOS):
     """A test EOS with a history variable: an ideal gas that records each particle's smallest ``J``."""
@@ -43,6 +46,9 @@ class Peak(jm.AbstractEOS):
 
     def update_internal(self, z, X, t, dt, J_old, J_new):
         return {"J_min": jnp.minimum(z["J_min"], J_new)}
+
+    def front_speed(self):
+        return None
 
 
 class PeakTube(jm.AbstractScene):

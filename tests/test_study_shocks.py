@@ -13,7 +13,9 @@ pytestmark = pytest.mark.slow
 
 def test_convergence_study_writes_the_shock_tables(tmp_path):
     out = convergence.main(str(tmp_path), small=True, methods=("CPDI",), scenes=["shock-tube (Sod)", "noh"])
-    assert {"shock_runs", "shock_orders", "energy_drift"} <= set(out) and "orders" not in out  # the smooth rungs did not run
+    assert {"shock_runs", "shock_orders", "energy_drift"} <= set(
+        out
+    ) and "orders" not in out  # the smooth rungs did not run
     sod, noh = out["shock_orders"]
     assert sod["scene"] == "shock-tube (Sod)" and noh["scene"] == "noh" and sod["transfer"] == "FLIP"
     assert sod["rho_L1_order"] > 0.5 and sod["u_L1_order"] > 0.5  # CPDI converges on Sod

@@ -54,6 +54,12 @@ def names(items: Iterable[str]) -> list[str]:
     return [item.partition("=")[0] for item in items if "=" in item]
 
 
+ALIASES = {"detonation": {"smooth": "smooth_burn"}}
+"""Command-line names of scene parameters whose field has another name: the detonation's ``smooth``
+(whether its burn's ramp is C1) is ``smooth_burn``, because ``scene.smooth`` marks the particles away
+from its front."""
+
+
 def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
     """The scene ``name`` with the parameters ``items`` (``name=value``), each read as the type of its
     default: a string, a boolean (``true``/``false``, ``1``/``0``), an integer or a finite number.
@@ -73,11 +79,13 @@ def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
         raise UsageError(f"unknown scene {name!r}; allowed: {', '.join(sorted(jm.SCENES))}")
     cls = jm.SCENES[name]
     defaults = cls.parameters()
+    aliases = ALIASES.get(name, {})
     kwargs = {}
-    for key, raw in split(items, "scene parameters are name=value"):
+    for given, raw in split(items, "scene parameters are name=value"):
+        key = aliases.get(given, given)
         if key not in defaults:
             raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
-        kwargs[key] = _typed(key, raw, defaults[key])
+        kwargs[key] = _typed(given, raw, defaults[key])
     try:
         return cls(**kwargs)
     except ValueError as e:

@@ -336,10 +336,18 @@ def report(
     Returns:
         The exit status, 0.
     """
-    err = jm.errors(scene, sol.state, sol.body)
-    diag = jm.diagnostics(scene, sol.state, sol.body)
-    params = scene.parameter_values()
     st = sol.state
+    # A scene of regions with fronts (the detonation) is measured where its solution is smooth.
+    where = None
+    if scene.regions is not None and float(st.t) > 0:
+        where = jm.metrics.smooth_mask(scene, sol.body, st.t)
+    err = jm.errors(scene, st, sol.body, where=where)
+    if where is not None:
+        err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where)
+    diag = jm.diagnostics(scene, st, sol.body)
+    params = scene.parameter_values()
+    if isinstance(scene, jm.Detonation):
+        params["cj"] = {k: float(v) for k, v in scene.cj().items()}
     if scene.dim == 1:
         particles = dict(
             X=floats(sol.body.X[:, 0]),
@@ -360,6 +368,8 @@ def report(
         particles["region"] = [int(r) for r in np.asarray(sol.body.region)]
         if st.internal is not None:
             particles.update({f"internal.{k}": floats(val) for k, val in st.internal.items()})
+            if "lambda" in st.internal:  # a programmed burn's burn fraction
+                particles["lambda"] = floats(st.internal["lambda"])
     euler = jm.metrics.euler_errors(scene, st, sol.body) if float(st.t) > 0 else None
     if euler is not None:
         err = {**err, **euler}
@@ -406,18 +416,30 @@ def _regions(scene) -> list[dict]:
     energy and particle count, for ``--json``."""
     out = []
     for region, count in zip(scene.regions(), scene.layout().counts):
-        mat = region.material
-        fields = {f.name: float(getattr(mat, f.name)) for f in dataclasses.fields(mat)}
         out.append(
             dict(
-                material=type(mat).__name__,
-                **fields,
+                **_describe(region.material),
                 rho0=float(region.rho0),
                 velocity=floats(region.velocity) if scene.dim > 1 else float(region.velocity[0]),
                 energy=float(region.energy),
                 particles=count,
             )
         )
+    return out
+
+
+def _describe(mat) -> dict:
+    """A material as JSON: ``material`` (its class) and its parameters, a wrapped material (a burn's
+    reactant and products) nested the same way."""
+    out: dict = dict(material=type(mat).__name__)
+    for f in dataclasses.fields(mat):
+        value = getattr(mat, f.name)
+        if value is None or isinstance(value, (str, bool)):
+            out[f.name] = value
+        elif isinstance(value, eqx.Module):
+            out[f.name] = _describe(value)
+        else:
+            out[f.name] = float(value) if np.ndim(value) == 0 else floats(value)
     return out
 
 

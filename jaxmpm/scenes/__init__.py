@@ -5,6 +5,7 @@ from ._displacement import AbstractDisplacementScene as AbstractDisplacementScen
 from .axis_aligned import AxisAligned as AxisAligned
 from .blast import Blast as Blast
 from .bodies import Bodies as Bodies
+from .detonation import Detonation as Detonation
 from .gas_expansion import GasExpansion as GasExpansion
 from .gas_slab import GasSlab as GasSlab
 from .interface import Interface as Interface
@@ -29,6 +30,7 @@ SCENES: dict[str, type[AbstractScene]] = {
         ShockTube,
         Noh,
         Interface,
+        Detonation,
     )
 }
 """The one registry of scenes, by the name each is known by (``scene.name``, the command line, a saved

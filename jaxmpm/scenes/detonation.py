@@ -1,0 +1,237 @@
+"""A planar detonation: a slab of explosive lit at ``X = 0``, products behind the exact CJ-Taylor wave."""
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float
+
+from .._checks import check_greater, check_positive
+from .._util import as_float
+from ..exact_detonation import Isentrope, gamma_law_particles, isentrope_fan
+from ..explosives import (
+    BURNS,
+    EXPLOSIVES,
+    GammaLawIsentrope,
+    JWLIsentrope,
+    ProgrammedBurn,
+    cj_state,
+    jwl,
+)
+from ..geometry import Box
+from ..materials import AbstractEOS, IdealGas
+from ..regions import Region
+from ._base import AbstractScene
+
+EXPLOSIVE_NAMES = ("gamma-law",) + tuple(EXPLOSIVES)
+"""The ``explosive`` choices: gamma-law products of the given ``D`` and ``gamma``, or a JWL row."""
+
+PRODUCTS = ("isentrope", "full")
+"""The ``products`` choices: on the CJ isentrope (barotropic) or the full EOS with its energy."""
+
+ENDS = ("wall", "free")
+
+
+class Detonation(AbstractScene):
+    """A slab of explosive on ``[0, L]``, lit at ``X = 0`` at ``t = 0``; the far end is free.
+
+    The explosive is a ``jaxmpm.explosives.ProgrammedBurn`` of an inert reactant (zero pressure) and
+    its products: a particle at ``X`` is lit at ``t_b = X / D`` and its burn fraction ``lambda`` grows
+    over ``burn_width`` particle sizes of travel of the front (``burn="time"``, Uintah's
+    ``ProgramBurn``), with compression (``"volume"``, the beta burn), or by the larger of the two
+    (``"max"``); ``smooth_burn=True`` makes the ramp C1. The stress is ``-lambda p_products I``.
+
+    Products (``explosive``):
+
+    - ``"gamma-law"`` (default): ``D``, ``gamma`` and ``rho0`` as given, ``p_CJ = rho0 D^2 / (gamma +
+      1)``; ``products="isentrope"`` puts them on their CJ isentrope ``p = p_CJ (J / J_CJ)^-gamma``,
+      ``products="full"`` makes them an ideal gas ``p = (gamma - 1) rho e`` with the detonation
+      energy ``e0 = D^2 / (2 (gamma^2 - 1))``, whose CJ state is the same;
+    - ``"tnt"``, ``"compb"``, ``"petn"``, ``"pbx9404"``: the JWL rows of ``jaxmpm.explosives.EXPLOSIVES``
+      (their ``rho0``, and ``D`` the CJ speed their EOS implies; the scene's ``D``, ``gamma`` and
+      ``rho0`` are not used); ``"isentrope"`` is the principal isentrope through the CJ point,
+      ``"full"`` the JWL form with the energy ``e0 = E0 / rho0``.
+
+    Every particle starts with ``e0`` (the gamma law's detonation energy, or the row's ``E0 / rho0``),
+    so that the energy it keeps is the products' whether or not the pressure reads it.
+
+    The exact solution (``exact``, ``jaxmpm.exact_detonation``) is the CJ front followed by the Taylor
+    rarefaction, with a region at rest against the wall (``ends="wall"``) or a fan to the escape speed
+    (``ends="free"``); it holds while the front is in the slab, ``t <= t_valid = L / D``. For gamma =
+    3 at a wall ``F`` rises from ``3/4`` at the front to ``9/8`` at rest, where the pressure is ``8/27
+    p_CJ``. ``smooth`` marks the particles the burn has finished with, farther than ``12 h`` behind the
+    front, where errors are measured (``jaxmpm run`` reports them there).
+
+    On the command line ``smooth=true|false`` sets ``smooth_burn`` (``smooth`` is the scene's marker
+    of the particles away from the front). Units are SI on the command line.
+
+    Attributes:
+        D: detonation speed of the gamma-law products, > 0.
+        gamma: their adiabatic exponent, > 1.
+        rho0: the explosive's density, > 0.
+        L: the slab's length (``h = L / cells``).
+        burn_width: the burn's length in particle sizes (``h / ppc``), >= 1 (Uintah: 1.5).
+        explosive: ``"gamma-law"`` or a JWL row's name (static).
+        products: ``"isentrope"`` or ``"full"`` (static).
+        ends: the lit end, ``"wall"`` or ``"free"`` (static).
+        burn: ``"time"``, ``"volume"`` or ``"max"`` (static).
+        smooth_burn: whether the burn's ramp is C1 (static).
+        cells, ppc, pad: as for every scene.
+    """
+
+    name: ClassVar[str] = "detonation"
+    description: ClassVar[str] = (
+        "1D detonation of a slab lit at X = 0: programmed burn, gamma-law or JWL products, exact CJ-Taylor"
+    )
+    dim: ClassVar[int] = 1
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+
+    D: Float[Array, ""] = eqx.field(converter=as_float, default=8000.0)
+    gamma: Float[Array, ""] = eqx.field(converter=as_float, default=3.0)
+    rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1875.0)
+    L: Float[Array, ""] = eqx.field(converter=as_float, default=0.1)
+    burn_width: Float[Array, ""] = eqx.field(converter=as_float, default=1.5)
+    explosive: str = eqx.field(static=True, default="gamma-law")
+    products: str = eqx.field(static=True, default="isentrope")
+    ends: str = eqx.field(static=True, default="wall")
+    burn: str = eqx.field(static=True, default="time")
+    smooth_burn: bool = eqx.field(static=True, default=False)
+    cells: int = eqx.field(static=True, default=200)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=4)
+
+    def __check_init__(self):
+        for name, value, allowed in (
+            ("explosive", self.explosive, EXPLOSIVE_NAMES),
+            ("products", self.products, PRODUCTS),
+            ("ends", self.ends, ENDS),
+            ("burn", self.burn, BURNS),
+        ):
+            if value not in allowed:
+                raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+        if not isinstance(self.smooth_burn, bool):
+            raise ValueError(f"smooth_burn must be true or false, got {self.smooth_burn!r}")
+        check_positive("D", self.D)
+        check_greater("gamma", self.gamma, 1.0)
+        check_positive("L", self.L)
+        check_greater("burn_width", self.burn_width - 1.0, -1e-12)  # >= 1 particle size
+        if self.explosive != "gamma-law":
+            jwl(self.explosive)  # a row whose implied CJ state misses its tabulated D is refused
+
+    @property
+    def h(self) -> Float[Array, ""]:
+        """The grid spacing ``L / cells``."""
+        return self.L / self.cells
+
+    @property
+    def left(self) -> str:
+        """The lit end: ``ends``."""
+        return self.ends
+
+    def _explosive(self) -> tuple[Float[Array, ""], AbstractEOS, Float[Array, ""], dict[str, Array]]:
+        """``(rho0, products EOS, e0, CJ state)`` of the chosen explosive and products form."""
+        if self.explosive == "gamma-law":
+            iso = GammaLawIsentrope(rho0=self.rho0, D=self.D, gamma=self.gamma)
+            e0 = jnp.square(self.D) / (2.0 * (jnp.square(self.gamma) - 1.0))
+            products = iso if self.products == "isentrope" else IdealGas(gamma=self.gamma)
+            return self.rho0, products, e0, iso.cj()
+        full, e0 = jwl(self.explosive, check=False)
+        cj = cj_state(full, full.rho0, e0)
+        products = JWLIsentrope.from_jwl(full, e0) if self.products == "isentrope" else full
+        return full.rho0, products, e0, cj
+
+    def cj(self) -> dict[str, Array]:
+        """The CJ state of the explosive (closed form for the gamma law, implied by the JWL EOS for a row).
+
+        Returns:
+            ``dict(D, P_CJ, J_CJ, u_CJ, c_CJ, rho_CJ, e_CJ)``.
+        """
+        return self._explosive()[3]
+
+    @property
+    def speed(self) -> Float[Array, ""]:
+        """The front's speed: ``D`` of the gamma law, the implied CJ speed of a JWL row."""
+        return self.cj()["D"]
+
+    @property
+    def t_valid(self) -> Float[Array, ""]:
+        """When the front reaches the free end, ``L / D`` (the exact solution holds until then)."""
+        return self.L / self.speed
+
+    def _burn(self, products, cj) -> ProgrammedBurn:
+        return ProgrammedBurn(
+            reactant=None,
+            products=products,
+            D=cj["D"],
+            points=jnp.zeros((1, 1), dtype=self.L.dtype),
+            width=self.burn_width * self.h / self.ppc,
+            J_CJ=cj["J_CJ"],
+            burn=self.burn,
+            smooth=self.smooth_burn,
+        )
+
+    def material(self):
+        _, products, _, cj = self._explosive()
+        return self._burn(products, cj)
+
+    def regions(self) -> tuple[Region]:
+        """One region: the explosive filling the slab, at rest, with its detonation energy.
+
+        Returns:
+            ``(explosive,)``.
+        """
+        rho0, products, e0, cj = self._explosive()
+        return (Region(Box(0.0, float(self.cells)), self._burn(products, cj), rho0, 0.0, e0),)
+
+    def initial_velocity(self, X):
+        return jnp.zeros_like(X)
+
+    def exact_particles(self, X: Float[ArrayLike, "*n"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact CJ-Taylor solution at reference positions ``X`` (``jaxmpm.exact_detonation``).
+
+        Args:
+            X: reference positions.
+            t: time, >= 0.
+
+        Returns:
+            ``dict(x, F, u, c, p, rho)``.
+        """
+        if self.explosive == "gamma-law":
+            return gamma_law_particles(X, t, self.rho0, self.D, self.gamma, self.ends)
+        rho0, _, e0, cj = self._explosive()
+        full, _ = jwl(self.explosive, check=False)
+        iso = Isentrope(JWLIsentrope.from_jwl(full, e0))
+        return isentrope_fan(iso, rho0, cj["D"], cj["J_CJ"], end=self.ends, cj_tol=None).particles(X, t)
+
+    def exact(self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
+        """The exact solution at one material point.
+
+        Args:
+            X: reference position.
+            t: time.
+
+        Returns:
+            ``dict(x, v, F, sigma)``.
+        """
+        s = self.exact_particles(X[0], t)
+        return dict(
+            x=jnp.reshape(s["x"], (1,)),
+            v=jnp.reshape(s["u"], (1,)),
+            F=jnp.reshape(s["F"], (1, 1)),
+            sigma=jnp.reshape(-s["p"], (1, 1)),
+        )
+
+    def smooth(self, X: Float[ArrayLike, " 1"], t: Float[ArrayLike, ""]) -> Bool[Array, ""]:
+        """Whether a particle is burnt and farther than ``12 h`` (reference length) behind the front.
+
+        Args:
+            X: reference position.
+            t: time.
+
+        Returns:
+            ``True`` in the products away from the front.
+        """
+        return X[0] < self.speed * t - 12.0 * self.h
