@@ -98,6 +98,7 @@ from .scenes import Bodies as Bodies
 from .scenes import Detonation as Detonation
 from .scenes import GasExpansion as GasExpansion
 from .scenes import GasSlab as GasSlab
+from .scenes import GurneySlab as GurneySlab
 from .scenes import Interface as Interface
 from .scenes import Manufactured as Manufactured
 from .scenes import Noh as Noh

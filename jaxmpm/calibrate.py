@@ -63,6 +63,7 @@ from ._simulate import SaveAt, simulate
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .scenes.gas_slab import free_surface, pad_for
+from .scenes.gurney import GurneySlab
 from .sensitivity import check_names, continuous_parameters
 from .status import LEFT_GRID
 
@@ -223,29 +224,59 @@ def draw(fitted: dict, offs: dict, names: Sequence[str], covariance_theta, membe
     return {n: offs[n] + np.exp(theta[:, i]) for i, n in enumerate(names)}
 
 
-def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, dt, **kwargs) -> jax.Array:
-    """The free-surface position at times ``ts`` (linear between steps), from one run of ``dt`` steps.
+def observable(scene: AbstractScene) -> str:
+    """What a scene's data observe: ``"v_plate"``, the plate's velocity of a ``GurneySlab``, or
+    ``"x_free"``, the free-surface position of a ``GasSlab``.
 
     Args:
-        scene: the scene (a ``GasSlab``).
+        scene: the scene.
+
+    Returns:
+        The observable's name (the data's column in ``jaxmpm calibrate --data``).
+    """
+    return "v_plate" if isinstance(scene, GurneySlab) else "x_free"
+
+
+def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, dt, **kwargs) -> jax.Array:
+    """The scene's observable (``observable``) at times ``ts`` (linear between steps), from one run of
+    ``dt`` steps: the gas slab's free-surface position ``x_R``, or the Gurney slab's plate velocity.
+
+    Args:
+        scene: the scene (a ``GasSlab`` or a ``GurneySlab``).
         interpolator: the MPM method.
         ts: the times (``>= 0``).
         dt: the time step.
         **kwargs: passed to ``simulate``.
 
     Returns:
-        ``x_R(ts)`` (``scenes.gas_slab.free_surface``), NaN everywhere when the run broke down.
+        The observable at ``ts`` (``scenes.gas_slab.free_surface``, ``GurneySlab.plate_velocity``),
+        NaN everywhere when the run broke down.
     """
     ts = jnp.asarray(ts)
     steps = _steps(ts, dt)
-    fields = ("x", "F", "corners") if interpolator.tracks_corners else ("x", "F")
+    if observable(scene) == "v_plate":
+        fields = ("v",)
+    else:
+        fields = ("x", "F", "corners") if interpolator.tracks_corners else ("x", "F")
     sol = simulate(
         scene, interpolator, dt=dt, steps=steps, saveat=SaveAt(every=1, fields=fields), throw=False, **kwargs
     )
     h = sol.history
-    xr = free_surface(h["x"], h["F"], h.get("corners"), sol.body)
+    if observable(scene) == "v_plate":
+        w = jnp.where(sol.body.region == 1, sol.body.m, 0.0)
+        values = h["v"][:, :, 0] @ w / jnp.sum(w)
+    else:
+        values = free_surface(h["x"], h["F"], h.get("corners"), sol.body)
     bad = sol.state.status != 0
-    return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, xr))
+    return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, values))
+
+
+def _scale(scene, x_data) -> float:
+    """The length (or speed) the loss divides the residuals by: the slab's length for a free surface,
+    the largest observed speed for a plate."""
+    if observable(scene) == "v_plate":
+        return float(np.max(np.abs(np.asarray(x_data))))
+    return float(scene.length)
 
 
 def _steps(ts, dt) -> int:
@@ -392,7 +423,7 @@ def calibrate(
     _check_starts(names, model.off, start_phys)
     start_theta = np.log(start_phys - model.off)
     data = np.broadcast_to(np.asarray(x_data), (len(starts), x_data.shape[0]))
-    L = float(scene.length)
+    L = _scale(scene, x_data)
     t0 = time.perf_counter()
     bar = _bar(progress, iterations)
     try:
@@ -469,7 +500,7 @@ def calibrate_each(
     one = np.array([[float(start.get(n, getattr(scene, n))) for n in names]])
     _check_starts(names, model.off, one)
     start_theta = np.repeat(np.log(one - model.off), x_sets.shape[0], axis=0)
-    L = float(scene.length)
+    L = _scale(scene, x_sets)
     t0 = time.perf_counter()
     run = _levenberg_marquardt(model, start_theta, x_sets, iterations, tol, L, None)
     wall = time.perf_counter() - t0
@@ -534,6 +565,8 @@ def _check_data(scene, t_data, x_data, what="x_data"):
     t_host = np.asarray(t_data)
     if t_host[0] < 0 or np.any(np.diff(t_host) <= 0):
         raise ValueError("t_data must start at >= 0 and increase")
+    if observable(scene) != "x_free":
+        return t_data, x_data
     x_max = float(np.max(np.asarray(x_data)))
     grid_end = float(scene.length) + scene.pad * float(scene.h)
     # a particle's stencil reaches up to 2 cells past its domain (CPDI, GIMP): the grid must hold that
@@ -1192,7 +1225,7 @@ def profile(
     start_theta = np.log(values - model.off)
     data = np.broadcast_to(np.asarray(x_data), (alphas.size, x_data.shape[0]))
     r, ok = model.residuals(np.zeros_like(start_theta), start_theta, data)
-    loss = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), float(scene.length)), np.nan)
+    loss = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), _scale(scene, x_data)), np.nan)
     return dict(alpha=alphas, loss=loss, ok=ok, **{n: values[:, i] for i, n in enumerate(names)})
 
 

@@ -354,7 +354,9 @@ class AbstractEOS(eqx.Module):
         a, b = self.pressure_terms(rho, z)
         da, db = jax.jvp(lambda r: self.pressure_terms(r, z), (rho,), (jnp.ones_like(rho),))[1]
         p = a + b * e
-        return jnp.sqrt(jnp.maximum(da + db * e + p * b / (rho * rho), 0.0))
+        c2 = da + db * e + p * b / (rho * rho)
+        pos = c2 > 0.0  # (a zero derivative, not NaN, where c = 0: an unburnt inert explosive)
+        return jnp.where(pos, jnp.sqrt(jnp.where(pos, c2, 1.0)), 0.0)
 
 
 class IdealGas(AbstractEOS):

@@ -211,3 +211,24 @@ def choices(text: str, option: str, allowed: Sequence[str]) -> list[str]:
     if not items or any(t not in allowed for t in items):
         raise UsageError(f"{option} must be a comma-separated list among {', '.join(allowed)}; got {text!r}")
     return items
+
+
+def viscosity(text: str | None) -> jm.ArtificialViscosity | None:
+    """``--viscosity QUAD,LIN`` as the artificial viscosity (``None``: none).
+
+    Args:
+        text: the option's value, e.g. ``"2.0,0.2"``, or ``None`` when not given.
+
+    Returns:
+        The ``ArtificialViscosity``, or ``None``.
+
+    Raises:
+        UsageError: not two numbers >= 0.
+    """
+    if text is None:
+        return None
+    try:
+        quad, lin = (float(c) for c in text.split(","))
+        return jm.ArtificialViscosity(c_quad=quad, c_lin=lin)
+    except ValueError as e:
+        raise UsageError(f"--viscosity must be QUAD,LIN (two numbers >= 0), got {text!r}: {e}") from None

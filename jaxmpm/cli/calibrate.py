@@ -1,4 +1,4 @@
-"""``jaxmpm calibrate``: fit material constants to a measured free-surface trajectory."""
+"""``jaxmpm calibrate``: fit material constants to a measured free-surface trajectory or plate velocity."""
 
 import csv
 import io
@@ -16,6 +16,10 @@ from jaxmpm.scenes.gas_slab import pad_for
 from . import _assign
 from ._common import UsageError, print_json
 
+SCENES = ("gas-slab", "gurney-slab")
+"""The scenes ``calibrate`` fits: the gas slab's free surface ``t,x_free``, the Gurney slab's plate
+velocity ``t,v_plate``."""
+
 
 def add_parser(subparsers) -> None:
     """Add the ``calibrate`` subcommand.
@@ -24,11 +28,17 @@ def add_parser(subparsers) -> None:
         subparsers: the ``jaxmpm`` parser's subparsers.
     """
     p = subparsers.add_parser(
-        "calibrate", help="fit constants (gamma, P0, rho0) to a free-surface trajectory"
+        "calibrate",
+        help="fit constants to a free-surface trajectory (gas-slab) or a plate velocity (gurney-slab)",
     )
-    p.add_argument("scene", help="scene name (gas-slab)")
+    p.add_argument("scene", help="scene name (gas-slab, gurney-slab)")
     p.add_argument("params", nargs="*", metavar="name=value", help="scene parameters (the model's)")
-    p.add_argument("--data", required=True, metavar="FILE.csv", help="header and columns t,x_free")
+    p.add_argument(
+        "--data",
+        required=True,
+        metavar="FILE.csv",
+        help="header and columns t,x_free (gurney-slab: t,v_plate)",
+    )
     p.add_argument("--fit", default="gamma,P0", metavar="NAME[,NAME...]", help="parameters to fit")
     p.add_argument("--start", metavar="NAME=V[,NAME=V...]", help="start values (default: the scene's)")
     p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
@@ -36,6 +46,13 @@ def add_parser(subparsers) -> None:
         "--method", default="lm", choices=list(jm.calibrate.METHODS), help="lm: Levenberg-Marquardt (default)"
     )
     p.add_argument("--iterations", type=int, default=50, help="the most iterations (50)")
+    p.add_argument(
+        "--viscosity",
+        nargs="?",
+        const="2.0,0.2",
+        metavar="QUAD,LIN",
+        help="artificial viscosity in the model (default coefficients 2.0,0.2; gurney-slab needs it)",
+    )
     p.add_argument("--dt", type=float, help="model time step (default: CFL 0.2 at the start values)")
     p.add_argument(
         "--noise", type=float, metavar="SIGMA", help="noise of x_free (default: estimated from the residuals)"
@@ -59,18 +76,20 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=command)
 
 
-def read_trajectory(path: str) -> tuple[np.ndarray, np.ndarray]:
+def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.ndarray]:
     """The measured trajectory: a CSV file (UTF-8 text) with a header and the columns ``t`` and
-    ``x_free``; other columns are ignored, blank lines skipped.
+    ``column`` (``x_free``, or ``v_plate`` for the Gurney slab); other columns are ignored, blank lines
+    skipped.
 
     Args:
         path: the file.
+        column: the observed quantity's column.
 
     Returns:
-        ``(t, x_free)``, at least two rows, every value finite, ``t`` from ``>= 0`` increasing.
+        ``(t, values)``, at least two rows, every value finite, ``t`` from ``>= 0`` increasing.
 
     Raises:
-        UsageError: the file cannot be read or is not CSV text; it is empty or has no ``t,x_free``
+        UsageError: the file cannot be read or is not CSV text; it is empty or has no ``t,{column}``
             header; a cell is missing, not a number or not finite; or ``t`` is negative or does not
             increase. The message names the line (the header is line 1) and the column.
     """
@@ -82,7 +101,7 @@ def read_trajectory(path: str) -> tuple[np.ndarray, np.ndarray]:
 
     def not_text(why) -> UsageError:
         return UsageError(
-            f"--data {path} is not a CSV text file ({why}); it needs a header t,x_free and rows of numbers"
+            f"--data {path} is not a CSV text file ({why}); it needs a header t,{column} and rows of numbers"
         )
 
     if b"\x00" in raw:
@@ -99,17 +118,17 @@ def read_trajectory(path: str) -> tuple[np.ndarray, np.ndarray]:
     except csv.Error as e:
         raise not_text(e) from None
     if header is None:
-        raise UsageError(f"--data: {path} is empty; it needs a header with the columns t,x_free and 2 rows")
-    if not {"t", "x_free"} <= {str(h).strip() for h in header}:
+        raise UsageError(f"--data: {path} is empty; it needs a header with the columns t,{column} and 2 rows")
+    if not {"t", column} <= {str(h).strip() for h in header}:
         shown = ",".join(str(h) for h in header)
         raise UsageError(
-            f"--data: {path} needs a header with the columns t,x_free; its header is {shown[:80]!r}"
+            f"--data: {path} needs a header with the columns t,{column}; its header is {shown[:80]!r}"
         )
     columns = {str(h).strip(): h for h in header}
     t, x = [], []
     for line, row in rows:
         values = []
-        for name in ("t", "x_free"):
+        for name in ("t", column):
             cell = row.get(columns[name])
             if cell is None or not cell.strip():
                 raise UsageError(f"--data: {path}, line {line}: no value in column {name}")
@@ -134,7 +153,7 @@ def read_trajectory(path: str) -> tuple[np.ndarray, np.ndarray]:
         t.append(values[0])
         x.append(values[1])
     if len(t) < 2:
-        raise UsageError(f"--data: {path} has {len(t)} row(s) of t,x_free; need at least 2")
+        raise UsageError(f"--data: {path} has {len(t)} row(s) of t,{column}; need at least 2")
     return np.array(t), np.array(x)
 
 
@@ -180,7 +199,10 @@ def _check_model_run(scene, interp, path: str, t: np.ndarray, dt: float) -> None
     what = f"--data: {path}: t reaches {float(t[-1]):.6g}, {steps:.3g} model steps of dt = {dt:.3g}"
     if steps > _MOST_STEPS:
         raise UsageError(f"{what}, more than {_MOST_STEPS}; give times in seconds, or a larger --dt")
-    fields = ("x", "F", "corners") if interp.tracks_corners else ("x", "F")
+    if jm.calibrate.observable(scene) == "v_plate":
+        fields = ("v",)
+    else:
+        fields = ("x", "F", "corners") if interp.tracks_corners else ("x", "F")
     try:  # prepare checks the run's memory, the saved history included
         prepare(scene, interp, dt=dt, steps=steps, saveat=jm.SaveAt(every=1, fields=fields))
     except ValueError as e:
@@ -188,7 +210,8 @@ def _check_model_run(scene, interp, path: str, t: np.ndarray, dt: float) -> None
 
 
 def command(args) -> int:
-    """Fit ``--fit`` of the gas slab to the trajectory in ``--data`` and print the fitted values.
+    """Fit ``--fit`` of the gas slab (or the Gurney slab) to the trajectory (plate velocity) in ``--data``
+    and print the fitted values.
 
     Args:
         args: the parsed command line.
@@ -201,11 +224,13 @@ def command(args) -> int:
     Raises:
         UsageError: bad input.
     """
-    scene = _assign.scene(args.scene, args.params)
-    if scene.name != "gas-slab":
+    if args.scene not in SCENES:
         raise UsageError(
-            f"calibrate fits a free-surface trajectory: the scene must be gas-slab, got {args.scene}"
+            "calibrate fits a free-surface trajectory (gas-slab) or a plate's velocity (gurney-slab): "
+            f"the scene must be one of {', '.join(SCENES)}, got {args.scene}"
         )
+    scene = _assign.scene(args.scene, args.params)
+    column = jm.calibrate.observable(scene)
     names = fit_names(scene, args.fit)
     start = _assign.numbers(args.start, "--start") if args.start else {}
     given = _assign.names(args.params)
@@ -231,14 +256,16 @@ def command(args) -> int:
                 raise UsageError(str(e)) from None
     if not 0.0 < args.max_correlation <= 1.0:  # NaN fails too
         raise UsageError(f"--max-correlation must be a number in (0, 1], got {args.max_correlation}")
-    t, x = read_trajectory(args.data)
-    if "pad" not in given:  # a grid for the data and the start's expansion, with room for trial runs
+    t, x = read_trajectory(args.data, column)
+    # a grid for the gas slab's data and the start's expansion, with room for trial runs
+    if "pad" not in given and column == "x_free":
         reach = max(float(np.max(x)), start_scene.max_reach())
         pad = max(scene.pad, pad_for(scene, 1.25 * reach))
         if pad != scene.pad:
             scene = type(scene)(**{**scene.parameter_values(), "pad": pad})
     dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / float(start_scene.wave_speed)
     interp = jm.INTERPOLATORS[args.interpolator]()
+    viscosity = _assign.viscosity(args.viscosity)
     _check_model_run(scene, interp, args.data, t, dt)
     try:
         with warnings.catch_warnings():  # the library's warning is printed once, below
@@ -257,6 +284,7 @@ def command(args) -> int:
                 max_correlation=args.max_correlation,
                 max_relative_std=args.max_relative_std,
                 progress=False if args.no_progress else None,
+                **({} if viscosity is None else {"viscosity": viscosity}),
             )
     except ValueError as e:
         raise UsageError(str(e)) from None

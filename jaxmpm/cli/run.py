@@ -115,15 +115,7 @@ def command(args) -> int:
             raise UsageError(f"--grad: {e}") from None
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
-    viscosity = None
-    if args.viscosity is not None:
-        try:
-            quad, lin = (float(c) for c in args.viscosity.split(","))
-            viscosity = jm.ArtificialViscosity(c_quad=quad, c_lin=lin)
-        except ValueError as e:
-            raise UsageError(
-                f"--viscosity must be QUAD,LIN (two numbers >= 0), got {args.viscosity!r}: {e}"
-            ) from None
+    viscosity = _assign.viscosity(args.viscosity)
     settings = dict(
         transfer=transfer,
         artificial_cells=args.artificial_cells,

@@ -8,6 +8,7 @@ from .bodies import Bodies as Bodies
 from .detonation import Detonation as Detonation
 from .gas_expansion import GasExpansion as GasExpansion
 from .gas_slab import GasSlab as GasSlab
+from .gurney import GurneySlab as GurneySlab
 from .interface import Interface as Interface
 from .manufactured import Manufactured as Manufactured
 from .noh import Noh as Noh
@@ -31,6 +32,7 @@ SCENES: dict[str, type[AbstractScene]] = {
         Noh,
         Interface,
         Detonation,
+        GurneySlab,
     )
 }
 """The one registry of scenes, by the name each is known by (``scene.name``, the command line, a saved

@@ -32,6 +32,35 @@ PRODUCTS = ("isentrope", "full")
 ENDS = ("wall", "free")
 
 
+def explosive_eos(
+    explosive: str, products: str, D: Float[Array, ""], gamma: Float[Array, ""], rho0: Float[Array, ""]
+) -> tuple[Float[Array, ""], AbstractEOS, Float[Array, ""], dict[str, Array]]:
+    """The products of an explosive: its density, its products EOS, its detonation energy, its CJ state.
+
+    Args:
+        explosive: ``"gamma-law"`` or a JWL row's name (``jaxmpm.explosives.EXPLOSIVES``).
+        products: ``"isentrope"`` (the CJ isentrope, barotropic) or ``"full"`` (the ideal gas, or JWL
+            with its energy).
+        D: the gamma law's detonation speed (unused for a JWL row).
+        gamma: the gamma law's exponent (unused for a JWL row).
+        rho0: the gamma law's density (unused for a JWL row).
+
+    Returns:
+        ``(rho0, products, e0, cj)``: ``e0`` is the gamma law's detonation energy ``D^2 / (2
+        (gamma^2 - 1))`` or the row's ``E0 / rho0``; ``cj`` the CJ state (closed form for the gamma
+        law, implied by the full JWL EOS for a row).
+    """
+    if explosive == "gamma-law":
+        iso = GammaLawIsentrope(rho0=rho0, D=D, gamma=gamma)
+        e0 = jnp.square(D) / (2.0 * (jnp.square(gamma) - 1.0))
+        eos = iso if products == "isentrope" else IdealGas(gamma=gamma)
+        return rho0, eos, e0, iso.cj()
+    full, e0 = jwl(explosive, check=False)
+    cj = cj_state(full, full.rho0, e0)
+    eos = JWLIsentrope.from_jwl(full, e0) if products == "isentrope" else full
+    return full.rho0, eos, e0, cj
+
+
 class Detonation(AbstractScene):
     """A slab of explosive on ``[0, L]``, lit at ``X = 0`` at ``t = 0``; the far end is free.
 
@@ -132,16 +161,7 @@ class Detonation(AbstractScene):
         return self.ends
 
     def _explosive(self) -> tuple[Float[Array, ""], AbstractEOS, Float[Array, ""], dict[str, Array]]:
-        """``(rho0, products EOS, e0, CJ state)`` of the chosen explosive and products form."""
-        if self.explosive == "gamma-law":
-            iso = GammaLawIsentrope(rho0=self.rho0, D=self.D, gamma=self.gamma)
-            e0 = jnp.square(self.D) / (2.0 * (jnp.square(self.gamma) - 1.0))
-            products = iso if self.products == "isentrope" else IdealGas(gamma=self.gamma)
-            return self.rho0, products, e0, iso.cj()
-        full, e0 = jwl(self.explosive, check=False)
-        cj = cj_state(full, full.rho0, e0)
-        products = JWLIsentrope.from_jwl(full, e0) if self.products == "isentrope" else full
-        return full.rho0, products, e0, cj
+        return explosive_eos(self.explosive, self.products, self.D, self.gamma, self.rho0)
 
     def cj(self) -> dict[str, Array]:
         """The CJ state of the explosive (closed form for the gamma law, implied by the JWL EOS for a row).
