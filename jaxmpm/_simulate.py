@@ -228,22 +228,21 @@ def advance(
     def one(state, _):
         if not isinstance(dt, ToEnd):
             return step(model, setup, state, dt, limit), None
-        h_dt = stable_dt(model, setup, state, dt.cfl)
         remaining = dt.t_end - state.t
-        last = h_dt >= remaining
         active = remaining > 0
-        dt_n = jnp.where(active & last, remaining, h_dt)  # past the end: a harmless step, discarded
-        t_new = jnp.where(last, dt.t_end, state.t + dt_n)  # lands on t_end exactly
-        # Past t_end (or after a breakdown) nothing changes: lax.cond skips the step's work, so a
-        # generous max_steps costs little. (Under vmap the branches become a select and both run.)
+
+        def take(st):
+            h_dt = stable_dt(model, setup, st, dt.cfl)
+            last = h_dt >= remaining
+            dt_n = jnp.where(active & last, remaining, h_dt)  # past the end: a harmless step, discarded
+            t_new = jnp.where(last, dt.t_end, st.t + dt_n)  # lands on t_end exactly
+            return step(model, setup, st, dt_n, limit, active=active, t_new=t_new)
+
+        # Past t_end (or after a breakdown) nothing changes: lax.cond skips the step's work, its
+        # stable step included, so a generous max_steps costs little. (Under vmap the branches become
+        # a select and both run.)
         go = active & (state.status == 0)
-        new = jax.lax.cond(
-            go,
-            lambda st: step(model, setup, st, dt_n, limit, active=active, t_new=t_new),
-            lambda st: st,
-            state,
-        )
-        return new, None
+        return jax.lax.cond(go, take, lambda st: st, state), None
 
     def scan(state, n):
         return jax.lax.scan(one, state, None, length=n)[0] if n > 0 else state
