@@ -1,5 +1,5 @@
-"""The studies' shock cases: the convergence study's shock tube and Noh rungs, and the stability
-study's stiff shock tube."""
+"""The studies' shock cases: the convergence study's shock tube, Noh and detonation rungs, and the
+stability study's stiff shock tube and detonation against air."""
 
 import json
 
@@ -45,3 +45,58 @@ def test_stiff_shock_tube_names_every_breakdown():
             assert np.isfinite(r["L1_rel"]) and r["verdict"] in ("accurate", "inaccurate")
             assert r["L1_rel"] == max(r["rho_L1_rel"], r["u_L1_rel"], r["p_L1_rel"])
     assert stability.shock_markdown(results).count("| MPQ |") == 1
+
+
+def test_convergence_study_gives_the_detonation_rows(tmp_path):
+    out = convergence.main(str(tmp_path), small=True, methods=("CPDI",), scenes=["detonation"])
+    case = next(c for c in convergence.shock_cases(True) if c.name == "detonation")
+    runs, (order,) = out["shock_runs"], out["shock_orders"]
+    assert [r["cells"] for r in runs] == list(case.cells) and out["energy_drift"] == []
+    for r in runs:
+        assert r["status"] == "ok" and r["smooth"] > 10 and "rho_L1" not in r
+        assert all(np.isfinite(r[k]) and 0 < r[k] < 0.1 for k in convergence.DETONATION_ERRORS)
+    assert runs[-1]["F_rms_rel"] < runs[0]["F_rms_rel"]  # CPDI converges on the CJ-Taylor wave
+    assert order["scene"] == "detonation" and order["failures"] == ""
+    for k in convergence.DETONATION_ERRORS:
+        assert 0.5 < order[f"{k}_order"] < 2 and order[f"{k}_finest"] == runs[-1][k]
+    text = (tmp_path / "shocks.md").read_text()
+    assert "**detonation**" in text and "| order F | order p |" in text and "| CPDI | FLIP |" in text
+    assert "**Energy without dissipation**" not in text
+    saved = json.loads((tmp_path / "shocks.json").read_text())
+    assert len(saved["runs"]) == len(case.cells) and saved["orders"][0]["F_rms_rel_order"] > 0.5
+
+
+def test_shock_orders_never_fit_a_detonation_run_that_broke_down():
+    rows = [
+        dict(scene="detonation", method="M", transfer="FLIP", cells=n, h=1 / n, F_rms_rel=e, p_rms_rel=e)
+        for n, e in ((50, 0.04), (100, 0.02), (200, float("nan")))
+    ]
+    rows[-1].update(F_max_rel=float("nan"), status="broke down at step 9, particle 3: F <= 0")
+    for r in rows[:-1]:
+        r.update(F_max_rel=2 * r["F_rms_rel"], status="ok")
+    (o,) = convergence.shock_orders(rows)
+    assert o["F_rms_rel_order"] == pytest.approx(1.0) and o["p_rms_rel_order_finest"] == pytest.approx(1.0)
+    assert np.isnan(o["F_rms_rel_finest"]) and o["failures"].startswith("200 cells: broke down at step 9")
+    assert "energy_drift_finest" not in o and "rho_L1_order" not in o
+
+
+def test_detonation_against_air_gives_a_status_per_run():
+    scene, slab = stability.detonation_scene(100)
+    air = scene.parts[1]
+    p_air = float(air.material.pressure(air.rho0, air.energy))
+    assert float(slab.cj()["P_CJ"]) / p_air == pytest.approx(1e5, rel=1e-12)
+    assert scene.layout().box  # the body fills its box: artificial cells are allowed
+    results = stability.detonation_sweep("CPDI", small=True)
+    assert [(r["artificial_cells"], r["cfl"]) for r in results] == [
+        (ac, c) for ac in (0, 1) for c in stability.CFLS
+    ]
+    for r in results:
+        assert r["verdict"] != "SILENT NON-FINITE"
+        if r["status"]:
+            assert r["verdict"].startswith("broken at step") and r["fail_step"] >= 1
+        else:
+            assert r["verdict"] in ("accurate", "inaccurate") and r["undisturbed"] > 10
+            assert np.isfinite(r["F_max_rel"]) and 0 < r["air_F_min"] < 0.5  # the air was shocked
+    assert any(r["verdict"] == "accurate" for r in results)  # CPDI at a small CFL number
+    table = stability.detonation_markdown(results)
+    assert table.count("| CPDI | 0 |") == 1 and table.count("| CPDI | 1 |") == 1

@@ -3,7 +3,9 @@
 Every scene with an exact answer runs to a fixed end time with the CFL-limited step (``dt`` shrinks
 with ``h``) at four or more resolutions, for each interpolator and transfer. The shock cases (Sod's
 shock tube, Noh's problem: gas with an energy equation) are measured by L1 errors against the exact
-solution of the Euler equations, with artificial viscosity. The observed order of an
+solution of the Euler equations, with artificial viscosity; the planar detonation (a programmed
+burn of gamma-law explosive against a wall) by the relative RMS errors of ``F`` and of the pressure
+against the exact CJ-Taylor wave over the burnt particles away from the front. The observed order of an
 error ``e`` is the least-squares slope of ``log e`` against ``log(1/h)`` over the resolutions that
 finished; the order of the finest pair is reported beside it. Scenes with fronts (vacuum expansion,
 Riemann problem) are measured away from them (``scene.smooth``). A run that broke down is listed
@@ -122,11 +124,17 @@ def cases(small: bool = False) -> list[Case]:
 EULER_ERRORS = ("rho_L1", "u_L1", "p_L1", "e_L1")
 """The shock cases' errors (``jaxmpm.metrics.euler_errors``): L1 norms of density, velocity, pressure
 and specific internal energy against the exact solution of the Euler equations."""
+DETONATION_ERRORS = ("F_rms_rel", "p_rms_rel")
+"""The detonation's errors (``detonation_errors``): the relative RMS errors of ``F`` and of the pressure
+against the exact CJ-Taylor wave over the burnt particles away from the front (``scene.smooth``)."""
+DETONATION_L = 0.1
+"""The detonation case's slab length, m."""
 
 
 @dataclasses.dataclass(frozen=True)
 class ShockCase:
-    """A shock problem of the Euler equations (gas with an energy equation) at several resolutions."""
+    """A shock problem at several resolutions: the Euler equations (gas with an energy equation),
+    measured by ``EULER_ERRORS``, or a detonation, measured by ``DETONATION_ERRORS``."""
 
     name: str
     make: Callable[[int], jm.AbstractScene]  # cells -> scene
@@ -134,18 +142,22 @@ class ShockCase:
     cells: tuple[int, ...]
     cfl: float = 0.2
     note: str = ""
+    artificial_cells: int = 0
+    errors: tuple[str, ...] = EULER_ERRORS
 
 
 def shock_cases(small: bool = False) -> list[ShockCase]:
-    """The shock rungs: Sod's shock tube and Noh's problem, with artificial viscosity.
+    """The shock rungs: Sod's shock tube, Noh's problem and the planar detonation, with artificial
+    viscosity.
 
     Args:
-        small: coarser grids.
+        small: coarser grids (the detonation: a coarse pair).
 
     Returns:
         One ``ShockCase`` per problem.
     """
     res = (50, 100, 200) if small else (100, 200, 400)
+    t_valid = float(jm.Detonation(L=DETONATION_L).t_valid)
     return [
         ShockCase(
             "shock-tube (Sod)",
@@ -160,6 +172,21 @@ def shock_cases(small: bool = False) -> list[ShockCase]:
             0.6,
             res,
             note="gamma = 5/3, wall at 0, t = 0.6: shock at 0.2, rho = 4 behind it",
+        ),
+        ShockCase(
+            "detonation",
+            lambda n: jm.Detonation(L=DETONATION_L, gamma=3.0, ends="wall", cells=n, ppc=1),
+            0.8 * t_valid,
+            (50, 100) if small else (100, 200, 400),
+            cfl=0.3,
+            note=(
+                "gamma-law products on their CJ isentrope, gamma = 3, D = 8000 m/s, "
+                f"L = {DETONATION_L:g} m lit against a wall at 0, time burn over 1.5 particles, "
+                "1 particle per cell, 1 artificial cell, t = 0.8 L / D; errors of F and p over the burnt "
+                "particles 12 h behind the front"
+            ),
+            artificial_cells=1,
+            errors=DETONATION_ERRORS,
         ),
     ]
 
@@ -180,6 +207,29 @@ def _noh_measures(scene, sol) -> dict:
     )
 
 
+def detonation_errors(scene: jm.Detonation, state, body) -> dict:
+    """A detonation's errors against its exact CJ-Taylor wave over the burnt particles away from the
+    front (``jaxmpm.metrics.smooth_mask``).
+
+    Args:
+        scene: the ``jaxmpm.Detonation``.
+        state: the state at the end time.
+        body: the reference configuration.
+
+    Returns:
+        ``DETONATION_ERRORS`` (``F_rms_rel``; ``p_rms_rel``, ``jaxmpm.metrics.pressure_error``), the
+        largest relative ``F`` error ``F_max_rel`` and the number of particles measured, ``smooth``.
+    """
+    where = jm.metrics.smooth_mask(scene, body, state.t)
+    err = jm.errors(scene, state, body, where=where)
+    return dict(
+        F_rms_rel=float(err["F_rms_rel"]),
+        p_rms_rel=float(jm.metrics.pressure_error(scene, state, body, where=where)),
+        F_max_rel=float(err["F_max_rel"]),
+        smooth=int(np.sum(np.asarray(where))),
+    )
+
+
 def run_shock_case(case: ShockCase, method: str, transfer: str) -> list[dict]:
     """Run one shock case at each of its resolutions, with artificial viscosity.
 
@@ -189,15 +239,19 @@ def run_shock_case(case: ShockCase, method: str, transfer: str) -> list[dict]:
         transfer: the transfer's label (``TRANSFERS``).
 
     Returns:
-        One row per resolution: ``EULER_ERRORS``, the relative drift of the total energy (kinetic plus
-        internal; the walls do no work), for Noh its shock position and plateau, and the status.
+        One row per resolution and the status. An Euler case: ``EULER_ERRORS``, the relative drift of
+        the total energy (kinetic plus internal; the walls do no work) and for Noh its shock position
+        and plateau. The detonation: what ``detonation_errors`` returns (its burn adds energy, so no
+        drift). NaN where the run broke down.
     """
+    euler = case.errors == EULER_ERRORS
     rows = []
     for n in case.cells:
         sc = case.make(n)
-        model = jm.Model(sc, METHODS[method](), TRANSFERS[transfer](), viscosity=jm.ArtificialViscosity())
-        prepared = jm.setup(model)
-        e0 = float(jm.diagnostics(sc, jm.initial_state(model, prepared), prepared.body)["energy"])
+        if euler:
+            model = jm.Model(sc, METHODS[method](), TRANSFERS[transfer](), viscosity=jm.ArtificialViscosity())
+            prepared = jm.setup(model)
+            e0 = float(jm.diagnostics(sc, jm.initial_state(model, prepared), prepared.body)["energy"])
         t0 = time.perf_counter()
         sol = jm.simulate(
             sc,
@@ -206,6 +260,7 @@ def run_shock_case(case: ShockCase, method: str, transfer: str) -> list[dict]:
             cfl=case.cfl,
             max_steps=int(10 * n / case.cfl) + 100,
             transfer=TRANSFERS[transfer](),
+            artificial_cells=case.artificial_cells,
             viscosity=jm.ArtificialViscosity(),
             throw=False,
         )
@@ -216,7 +271,14 @@ def run_shock_case(case: ShockCase, method: str, transfer: str) -> list[dict]:
         row.update(steps=int(sol.state.step), seconds=seconds)
         extra = ("shock_cells", "plateau_rho", "wall_heated") if isinstance(sc, jm.Noh) else ()
         fail = sol.failure()
-        if fail is None:
+        if not euler:
+            if fail is None:
+                row.update(detonation_errors(sc, sol.state, sol.body), status="ok")
+            else:
+                row.update(dict.fromkeys(DETONATION_ERRORS + ("F_max_rel", "smooth"), float("nan")))
+                what = "; ".join(fail["quantities"])
+                row["status"] = f"broke down at step {fail['step']}, particle {fail['particle']}: {what}"
+        elif fail is None:
             err = jm.euler_errors(sc, sol.state, sol.body)
             row.update({k: float(err[k]) for k in EULER_ERRORS})
             row["energy_drift"] = float(jm.diagnostics(sc, sol.state, sol.body)["energy"]) / e0 - 1.0
@@ -269,14 +331,16 @@ def energy_drift(method: str, cells: int) -> dict:
 
 
 def shock_orders(rows: list[dict]) -> list[dict]:
-    """The observed orders of the shock cases' L1 errors, per scene, method and transfer.
+    """The observed orders of the shock cases' errors, per scene, method and transfer.
 
     Args:
         rows: the ``run_shock_case`` rows.
 
     Returns:
         One row per scene, method and transfer: each error's order (fit and finest pair) and finest
-        value, the energy drift at the finest resolution, Noh's measures there, and the breakdowns.
+        value, the energy drift at the finest resolution (Euler cases), Noh's measures there, the
+        detonation's largest ``F`` error there, and the breakdowns. A run that broke down has NaN
+        errors and is left out of the fit.
     """
     groups: dict = {}
     for r in rows:
@@ -284,10 +348,13 @@ def shock_orders(rows: list[dict]) -> list[dict]:
     out = []
     for (scene, method, transfer), rs in groups.items():
         o = dict(scene=scene, method=method, transfer=transfer)
-        for k in EULER_ERRORS:
+        for k in EULER_ERRORS if EULER_ERRORS[0] in rs[0] else DETONATION_ERRORS:
             o[f"{k}_order"], o[f"{k}_order_finest"] = fit_order([r["h"] for r in rs], [r[k] for r in rs])
             o[f"{k}_finest"] = rs[-1][k]
-        o["energy_drift_finest"] = rs[-1]["energy_drift"]
+        if "energy_drift" in rs[-1]:
+            o["energy_drift_finest"] = rs[-1]["energy_drift"]
+        if "F_max_rel" in rs[-1]:
+            o["F_max_rel_finest"] = rs[-1]["F_max_rel"]
         for k in ("shock_cells", "plateau_rho", "wall_heated"):
             if k in rs[-1]:
                 o[f"{k}_finest"] = rs[-1][k]
@@ -310,6 +377,9 @@ def shock_markdown(order_rows: list[dict], all_cases: list[ShockCase]) -> str:
     for case in all_cases:
         rs = [o for o in order_rows if o["scene"] == case.name]
         if not rs:
+            continue
+        if case.errors != EULER_ERRORS:
+            lines.append(_detonation_table(case, rs))
             continue
         noh = "shock_cells_finest" in rs[0]
         lines.append(
@@ -334,6 +404,25 @@ def shock_markdown(order_rows: list[dict], all_cases: list[ShockCase]) -> str:
                 )
             lines.append(row + f"| {o['failures'] or '-'} |")
         lines.append("")
+    return "\n".join(lines)
+
+
+def _detonation_table(case: ShockCase, rs: list[dict]) -> str:
+    """The detonation's table: orders of the relative RMS errors of F and p, their finest values."""
+    lines = [
+        f"**{case.name}** ({case.note}; cells {', '.join(map(str, case.cells))}, CFL {case.cfl})\n",
+        "| method | transfer | order F | order p | F rms err (finest) | F max err (finest) "
+        "| p rms err (finest) | breakdowns |",
+        "|---" * 8 + "|",
+    ]
+    for o in rs:
+        lines.append(
+            f"| {o['method']} | {o['transfer']} "
+            + "".join(f"| {_f(o[f'{k}_order'])} ({_f(o[f'{k}_order_finest'])}) " for k in DETONATION_ERRORS)
+            + f"| {_f(o['F_rms_rel_finest'], '.2e')} | {_f(o['F_max_rel_finest'], '.2e')} "
+            + f"| {_f(o['p_rms_rel_finest'], '.2e')} | {o['failures'] or '-'} |"
+        )
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -474,7 +563,8 @@ def main(
     release: Callable[[], object] | None = None,
 ) -> dict:
     """Run the ladder; write ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json`` to ``out``, and
-    for the shock cases ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``.
+    for the shock cases (Sod, Noh, the detonation) ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and
+    ``shocks.json``.
 
     Needs float64 on (``jaxmpm study`` switches it on).
 
@@ -489,7 +579,8 @@ def main(
 
     Returns:
         ``runs`` (one row per run) and ``orders`` (one row per scene, method and transfer), and
-        ``shock_runs`` and ``shock_orders`` for the shock cases.
+        ``shock_runs``, ``shock_orders`` and ``energy_drift`` (empty without an Euler case) for the shock
+        cases.
 
     Raises:
         RuntimeError: float64 is off.
@@ -518,8 +609,9 @@ def _write_csv(path: pathlib.Path, table: list[dict]) -> None:
 
 
 def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
-    """Run the shock cases (FLIP only, unless ``transfers`` names others); write ``shocks.md``,
-    ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``."""
+    """Run the shock cases (FLIP only, unless ``transfers`` names others) and, with an Euler case, the
+    energy drift at its resolutions; write ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and
+    ``shocks.json``."""
     used = transfers if transfers != tuple(TRANSFERS) else ("FLIP",)
     rows = []
     for case in all_cases:
@@ -529,9 +621,10 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
         if release is not None:
             release()
     order_rows = shock_orders(rows)
-    res = all_cases[0].cells
+    euler = [c for c in all_cases if c.errors == EULER_ERRORS]
+    res = euler[0].cells if euler else ()
     drift = [energy_drift(method, n) for method in methods for n in res]
-    if release is not None:
+    if release is not None and drift:
         release()
     head = (
         "# Shocks: observed orders of convergence\n\n"
@@ -540,9 +633,15 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
         "least-squares slope over the resolutions that finished (in brackets: the finest pair). Ideal "
         "gas with the energy equation, artificial viscosity (c_quad 2, c_lin 0.2), 2 particles per "
         f"cell, {', '.join(used)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
-        "the total (kinetic plus internal) energy's relative change at the finest resolution.\n\n"
+        "the total (kinetic plus internal) energy's relative change at the finest resolution. The "
+        "detonation (`jaxmpm.Detonation`): relative RMS errors of F and of the pressure "
+        "(`jaxmpm.metrics.pressure_error`) against the exact CJ-Taylor wave over the burnt particles "
+        "12 h behind the front (`scene.smooth`), the same viscosity, and no energy drift (the burn adds "
+        "the explosive's energy); a run that broke down is listed, never fitted.\n\n"
     )
     text = head + shock_markdown(order_rows, all_cases)
+    if not drift:
+        return _write_shocks(outdir, text, rows, order_rows, drift)
     text += (
         "\n**Energy without dissipation** (an ideal-gas slab, rho = 1, p = 1, gamma = 1.4, expanding into "
         "vacuum from both free ends: no viscosity, no walls, FLIP, CFL 0.2, to t = 0.2): the total "
@@ -557,6 +656,11 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
             + " | ".join(_f(r["energy_drift"], ".1e") if r["status"] == "ok" else r["status"] for r in cells)
             + " |\n"
         )
+    return _write_shocks(outdir, text, rows, order_rows, drift)
+
+
+def _write_shocks(outdir, text, rows, order_rows, drift) -> dict:
+    """Write ``shocks.md``, ``shock_runs.csv``, ``shocks.csv`` and ``shocks.json``; print the tables."""
     (outdir / "shocks.md").write_text(text)
     _write_csv(outdir / "shock_runs.csv", rows)
     _write_csv(outdir / "shocks.csv", order_rows)
