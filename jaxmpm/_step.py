@@ -39,6 +39,11 @@ from .viscosity import ArtificialViscosity
 
 ORDERINGS = ("usl", "musl")
 
+PRODUCTS_TENSION_BOUND = 1e-3
+"""A burnt particle whose products' pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (about
+``-4e-3 p_CJ`` for gamma = 3) is a breakdown (``status.PRODUCTS_TENSION``): detonation products hold no
+tension, so such a pressure means the products' EOS was taken outside its range."""
+
 
 class Model(eqx.Module):
     """Everything a run is made of: the scene (with its parameters) and the method choices.
@@ -517,9 +522,9 @@ def step(
         sigma = jax.vmap(mat.stress)(F_new)
         if model.viscosity is not None:
             sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
-        e_new, internal = state.e, state.internal
+        e_new, internal, tension = state.e, state.internal, None
     else:
-        sigma, e_new, internal = _constitutive(model, setup, state, F_new, dt)
+        sigma, e_new, internal, tension = _constitutive(model, setup, state, F_new, dt)
     x_tr = state.x_traction
     if x_tr is not None:
         x_tr = x_tr + dt * contract("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
@@ -556,6 +561,8 @@ def step(
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     if e_new is not None:
         checks.append((st_bits.NEGATIVE_ENERGY, e_new < 0.0))
+    if tension is not None:
+        checks.append((st_bits.PRODUCTS_TENSION, tension))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
     left_grid = _off_grid(grid, lo, hi)
     checks.append((st_bits.LEFT_GRID, left_grid | _merge(pre_checks, st_bits.LEFT_GRID, body.n)))
@@ -604,12 +611,17 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
     solved for ``e_new`` exactly (``p_new = a + b e_new`` is affine in it), and gives
     ``sigma = -(p_new + q) I``. ``q`` is the artificial viscosity, with the sound speed at the new
     density and the old energy.
+
+    Returns ``(sigma, e, internal, tension)``: ``tension`` marks the burnt particles of a programmed
+    burn whose products' own pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (``None`` without
+    a burn).
     """
     body, h = setup.body, setup.grid.h
     n, dim = body.X.shape
     dtype = body.X.dtype
     groups = _groups(model, setup)
     sig, energies, internal = [], [], None if state.internal is None else dict(state.internal)
+    tensions = []
     for g in groups:
         F_old, F_g = _take(state.F, g.index), _take(F_new, g.index)
         mat = g.material
@@ -640,11 +652,20 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
         e_g = (e_old - (0.5 * p_old + q + 0.5 * a) * dJ) / (1.0 + 0.5 * b * dJ)
         sig.append(_eos_stress(a + b * e_g + q, dim, dtype))
         energies.append(e_g)
+        if isinstance(mat, ProgrammedBurn):
+            p_products = jax.vmap(mat.products.pressure)(rho_new, e_g)
+            bound = -PRODUCTS_TENSION_BOUND * g.rho0 * jnp.square(mat.D)
+            tensions.append((g.index, (z_new["lambda"] > 0.0) & (p_products < bound)))
         if z_new is not None:
             for k in keys:
                 internal[k] = internal[k].at[g.index].set(z_new[k]) if g.index is not None else z_new[k]
     e = None if state.e is None else _assemble(energies, groups, n)
-    return _assemble(sig, groups, n), e, internal
+    tension = None
+    if tensions:
+        tension = jnp.zeros((n,), dtype=bool)
+        for index, mask in tensions:
+            tension = mask if index is None else tension.at[index].set(mask)
+    return _assemble(sig, groups, n), e, internal, tension
 
 
 def fold_massless(

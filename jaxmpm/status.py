@@ -11,6 +11,7 @@ STENCIL = 16
 SCENE_DATA = 32
 MAX_STEPS = 64
 NEGATIVE_ENERGY = 128
+PRODUCTS_TENSION = 256
 
 QUANTITY = {
     NONFINITE: "non-finite state (x, v, F or sigma is NaN or inf)",
@@ -21,6 +22,7 @@ QUANTITY = {
     SCENE_DATA: "the scene's traction or body force is not finite (past the end of its solution?)",
     MAX_STEPS: "max_steps steps were taken before t_end was reached (raise max_steps)",
     NEGATIVE_ENERGY: "negative specific internal energy e (the step took more energy than the particle had)",
+    PRODUCTS_TENSION: "detonation products in tension (their pressure below -1e-3 rho0 D^2; products hold none)",
 }
 
 

@@ -145,3 +145,35 @@ def test_a_detonator_outside_the_body_is_refused():
     )
     with pytest.raises(ValueError, match="detonator"):
         jm.simulate(scene, jm.MPQ(), dt=1e-8, steps=1)
+
+
+class _Pull(jm.AbstractEOS):
+    """Test products in tension: ``p = -1e9`` Pa whatever the state."""
+
+    def pressure_terms(self, rho, z):
+        return -1e9 * jnp.ones_like(rho), jnp.zeros_like(rho)
+
+    def initial_internal(self, X):
+        return None
+
+    def update_internal(self, z, X, t, dt, J_old, J_new):
+        return z
+
+    def front_speed(self):
+        return None
+
+
+def test_products_in_tension_are_a_named_breakdown():
+    """Products pulling at -1e9 Pa (below -1e-3 rho0 D^2 = -1.2e8 Pa) stop the run at the first burnt
+    particle, named."""
+    burn = jm.explosives.ProgrammedBurn(
+        reactant=None, products=_Pull(), D=8000.0, points=[0.0], width=1e-3, J_CJ=0.75
+    )
+    scene = jm.Bodies(
+        parts=(jm.Region(jm.geometry.Box(0.0, 10.0), burn, 1875.0, 0.0, 4e6),), cells=10, h=1e-3
+    )
+    sol = jm.simulate(scene, jm.CPDI(), dt=2e-8, steps=20, throw=False)
+    assert int(sol.state.status) == jm.status.PRODUCTS_TENSION
+    # particle 0 (X = 0.25 mm) is lit at t = 3.1e-8 s, in the second step of 2e-8 s
+    assert int(sol.state.fail_particle) == 0 and int(sol.state.fail_step) == 2
+    assert "products in tension" in sol.failure()["quantities"][0]
