@@ -12,6 +12,7 @@ STUDIES = {
     "work-precision": "work_precision",
     "stability": "stability",
     "multid": "multid",
+    "detonation": "detonation",
 }
 """The name on the command line of each study, and its module in ``jaxmpm.studies``."""
 
@@ -34,7 +35,9 @@ def add_parser(subparsers) -> None:
         choices=list(STUDIES),
         help="talk: the 2013 MPM workshop comparison; convergence: observed orders on the verification "
         "ladder; work-precision: error against run time; stability: the stiff and extreme map; multid: 2D "
-        "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run)",
+        "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run); detonation: "
+        "the planar detonation's F by interpolator, its convergence behind the front and the peak pressure "
+        "against P_CJ by burn model",
     )
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")
