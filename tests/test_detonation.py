@@ -177,3 +177,22 @@ def test_products_in_tension_are_a_named_breakdown():
     # particle 0 (X = 0.25 mm) is lit at t = 3.1e-8 s, in the second step of 2e-8 s
     assert int(sol.state.fail_particle) == 0 and int(sol.state.fail_step) == 2
     assert "products in tension" in sol.failure()["quantities"][0]
+
+
+@pytest.mark.parametrize("smooth", [False, True], ids=["linear", "smooth"])
+def test_gradient_with_respect_to_D_and_gamma_matches_central_differences(smooth):
+    """Reverse mode through a burn (fixed steps: a run to an end time changes its step count with D):
+    d/dD and d/dgamma of the products' mean pressure equal central differences."""
+
+    def mean_p(D, gamma):
+        scene = jm.Detonation(D=D, gamma=gamma, L=0.01, cells=20, ppc=1, smooth_burn=smooth)
+        sol = jm.simulate(scene, jm.CPDI(), dt=2e-8, steps=40, viscosity=jm.ArtificialViscosity())
+        return jnp.mean(jm.pressure(sol.state)) / 1e9
+
+    D, gamma = jnp.asarray(8000.0), jnp.asarray(3.0)
+    g = jax.grad(mean_p, argnums=(0, 1))(D, gamma)
+    for k, eps in ((0, 0.5), (1, 1e-4)):
+        hi, lo = [D, gamma], [D, gamma]
+        hi[k], lo[k] = hi[k] + eps, lo[k] - eps
+        fd = (mean_p(*hi) - mean_p(*lo)) / (2 * eps)
+        assert abs(float(g[k]) - float(fd)) < 1e-4 * abs(float(fd)), (k, float(g[k]), float(fd))
