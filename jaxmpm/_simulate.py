@@ -227,9 +227,7 @@ def advance(
 
     def one(state, _):
         if not isinstance(dt, ToEnd):
-            # After a breakdown, or past a chunk's limit, the step changes nothing: skip its work.
-            go = state.status == 0 if limit is None else (state.status == 0) & (state.step < limit)
-            return jax.lax.cond(go, lambda st: step(model, setup, st, dt, limit), lambda st: st, state), None
+            return step(model, setup, state, dt, limit), None
         remaining = dt.t_end - state.t
         active = remaining > 0
 

@@ -22,7 +22,7 @@ QUANTITY = {
     SCENE_DATA: "the scene's traction or body force is not finite (past the end of its solution?)",
     MAX_STEPS: "max_steps steps were taken before t_end was reached (raise max_steps)",
     NEGATIVE_ENERGY: "negative specific internal energy e (the step took more energy than the particle had)",
-    PRODUCTS_TENSION: "detonation products in tension (their pressure below -1e-3 rho0 D^2; products hold none)",
+    PRODUCTS_TENSION: "detonation products in tension (their pressure below -1e-3 rho0 D^2)",
 }
 
 

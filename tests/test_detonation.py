@@ -196,3 +196,20 @@ def test_gradient_with_respect_to_D_and_gamma_matches_central_differences(smooth
         hi[k], lo[k] = hi[k] + eps, lo[k] - eps
         fd = (mean_p(*hi) - mean_p(*lo)) / (2 * eps)
         assert abs(float(g[k]) - float(fd)) < 1e-4 * abs(float(fd)), (k, float(g[k]), float(fd))
+
+
+def test_gradient_of_a_run_to_an_end_time_is_finite_and_right():
+    """To an end time the step depends on D (the front bounds it) and on each particle's |v|, zero for
+    the explosive at rest: the derivative is finite (|v|'s is taken as 0 at rest) and equals the central
+    difference (smooth burn, 1 us, the step count constant near D)."""
+
+    def mean_p(D):
+        scene = jm.Detonation(D=D, L=0.01, cells=20, ppc=1, smooth_burn=True)
+        sol = jm.simulate(
+            scene, jm.CPDI(), t_end=1e-6, cfl=0.3, max_steps=400, viscosity=jm.ArtificialViscosity()
+        )
+        return jnp.mean(jm.pressure(sol.state)) / 1e9
+
+    g = float(jax.grad(mean_p)(jnp.asarray(8000.0)))
+    fd = float((mean_p(jnp.asarray(8000.01)) - mean_p(jnp.asarray(7999.99))) / 0.02)
+    assert np.isfinite(g) and abs(g - fd) < 1e-4 * abs(fd), (g, fd)

@@ -87,3 +87,14 @@ def test_calibrate_reads_v_plate_and_names_the_scenes(tmp_path, capsys):
     usage(capsys, base, "needs a header with the columns t,v_plate")
     usage(capsys, ["calibrate", "noh", "--data", str(path)], "the scene must be one of gas-slab, gurney-slab")
     usage(capsys, ["calibrate", "gurney-slab", "metal=lead", "--data", str(path)], "metal must be one of")
+
+
+def test_run_json_reports_the_plate(capsys):
+    argv = "run gurney-slab cells=20 pad=60 --interpolator cpdi --viscosity --t-end 8e-6 --cfl 0.3"
+    assert main([*argv.split(), "--max-steps", "5000", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["status"] == 0 and out["plate"]["gurney"] == pytest.approx(1358.0, abs=1.0)
+    assert 0.0 < out["plate"]["velocity"] < out["plate"]["gurney"]
+    assert out["particles"]["region"].count(1) == 8 and out["params"]["cj"]["D"] == pytest.approx(
+        7980, rel=2e-3
+    )

@@ -338,8 +338,13 @@ def report(
         err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where)
     diag = jm.diagnostics(scene, st, sol.body)
     params = scene.parameter_values()
-    if isinstance(scene, jm.Detonation):
+    plate = None
+    if isinstance(scene, (jm.Detonation, jm.GurneySlab)):
         params["cj"] = {k: float(v) for k, v in scene.cj().items()}
+    if isinstance(scene, jm.GurneySlab):  # the plate's velocity, and Gurney's estimate of where it tends
+        plate = dict(
+            velocity=float(scene.plate_velocity(st, sol.body)), gurney=float(scene.gurney_velocity())
+        )
     if scene.dim == 1:
         particles = dict(
             X=floats(sol.body.X[:, 0]),
@@ -371,6 +376,7 @@ def report(
             t=float(st.t),
             params=params,
             **({"regions": _regions(scene)} if scene.regions is not None else {}),
+            **({"plate": plate} if plate is not None else {}),
             particles=particles,
             errors={k: scalar(v) for k, v in err.items()},
             diagnostics={k: (float(v) if np.ndim(v) == 0 else floats(v)) for k, v in diag.items()},
@@ -393,6 +399,8 @@ def report(
         _print_particles_1d(sol, particles, ex)
     print("errors: " + "  ".join(f"{k}={scalar(v):.4g}" for k, v in err.items() if v is not None))
     print("diagnostics: " + "  ".join(f"{k}={_fmt(v)}" for k, v in diag.items()))
+    if plate is not None:
+        print(f"plate: velocity={plate['velocity']:.6g}  gurney={plate['gurney']:.6g}")
     if grad is not None:
         print(
             "d(F_rms_rel)/d: "
