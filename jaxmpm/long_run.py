@@ -152,7 +152,16 @@ def show_progress(progress: bool | None) -> bool:
     env = os.environ.get("JAXMPM_PROGRESS")
     if env is not None:
         return env not in ("0", "", "false", "no")
-    return "ipykernel" in sys.modules or sys.stderr.isatty()
+    return _in_notebook() or sys.stderr.isatty()
+
+
+def _in_notebook() -> bool:
+    """Whether this code runs in a Jupyter kernel (an IPython shell over ZMQ), not merely in a process
+    that imported ``ipykernel`` (a test runner that executed notebooks does)."""
+    ipython = sys.modules.get("IPython")
+    get = getattr(ipython, "get_ipython", None)
+    shell = get() if get is not None else None
+    return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):
