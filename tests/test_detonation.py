@@ -54,6 +54,7 @@ def test_gamma_3_wall_products_F_within_2_percent_and_wall_plateau_8_27(interp):
     assert np.all(lam[X > front + float(scene.h)] == 0.0)
 
 
+@pytest.mark.slow
 def test_burn_fraction_never_decreases_and_the_step_resolves_the_front():
     """The step is bounded by the front's speed (the unburnt explosive has no sound speed), and the
     burn fraction of every particle only grows from step to step."""
@@ -179,6 +180,7 @@ def test_products_in_tension_are_a_named_breakdown():
     assert "products in tension" in sol.failure()["quantities"][0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("smooth", [False, True], ids=["linear", "smooth"])
 def test_gradient_with_respect_to_D_and_gamma_matches_central_differences(smooth):
     """Reverse mode through a burn (fixed steps: a run to an end time changes its step count with D):
@@ -198,6 +200,7 @@ def test_gradient_with_respect_to_D_and_gamma_matches_central_differences(smooth
         assert abs(float(g[k]) - float(fd)) < 1e-4 * abs(float(fd)), (k, float(g[k]), float(fd))
 
 
+@pytest.mark.slow
 def test_gradient_of_a_run_to_an_end_time_is_finite_and_right():
     """To an end time the step depends on D (the front bounds it) and on each particle's |v|, zero for
     the explosive at rest: the derivative is finite (|v|'s is taken as 0 at rest) and equals the central

@@ -210,6 +210,7 @@ def test_quadrature_reproduces_gamma_law(gamma, end):
         _compare(fan.particles(XX, t), exact, dict(u=D, c=D, p=scales["p"], rho=RHO0, x=1.0, F=1.0), mask)
 
 
+@pytest.mark.slow
 def test_quadrature_on_jwl():
     """The TNT detonation on its JWL isentrope: the CJ point, the fan's invariant against its integrand,
     and the particle paths against the fields and against a diffrax integration of dx/dt = u(x, t)."""
@@ -255,6 +256,7 @@ def test_quadrature_on_jwl():
     _close(sol.ys, fan.particles(X0, ts)["x"], X0, 1e-9)
 
 
+@pytest.mark.slow
 def test_gradients_match_central_differences():
     h = 1e-6
 
@@ -285,6 +287,7 @@ def test_gradients_match_central_differences():
         np.testing.assert_allclose(got, want, rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_gradients_are_finite_in_every_region():
     """The branches that divide by zero or take a bad power (the escape front, vacuum, X = 0, unburnt
     particles, t = 0) do not poison the derivatives of the others."""

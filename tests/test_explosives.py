@@ -86,6 +86,7 @@ def test_cj_with_ambient_pressure_stays_on_hugoniot_and_rayleigh_line():
     np.testing.assert_allclose(c, D * J, rtol=1e-8)
 
 
+@pytest.mark.slow
 def test_cj_gradients_match_central_differences():
     rho0 = TNT["rho0"]
 

@@ -23,6 +23,7 @@ def test_gurney_formula_for_comp_b_on_steel():
     assert scene.layout().counts == (320, 80)  # 2 particles per cell
 
 
+@pytest.mark.slow
 def test_comp_b_drives_the_plate_to_gurneys_velocity():
     """4 cm of Comp B (JWL with its energy) drives 1 cm of 4340 steel: the plate's velocity at 30 us
     is within 5% of Gurney's 1356 m/s (1357 m/s at 100 cells), and it gains less than 2% over the last
@@ -47,6 +48,7 @@ def test_comp_b_drives_the_plate_to_gurneys_velocity():
     assert 0.0 < v - before < 0.02 * v, (before, v)
 
 
+@pytest.mark.slow
 def test_cli_recovers_D_and_gamma_from_noisy_plate_velocity(tmp_path, capsys):
     """Synthetic data from a finer run (200 cells) with 5 m/s of noise; the model has 100 cells."""
     truth = jm.GurneySlab(explosive="gamma-law", cells=200, pad=800)
