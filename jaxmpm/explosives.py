@@ -481,6 +481,16 @@ def _as_points(x: object) -> Float[Array, "k dim"]:
     return p
 
 
+def _as_planes(x: object) -> Float[Array, "m dim1"] | None:
+    """Plane detonators as an ``(m, dim + 1)`` array of rows ``(n, c)``, the plane ``n . X = c`` (one
+    plane may be given as a vector); ``None`` for none."""
+    if x is None:
+        return None
+    check_real("planes", x)
+    p = jnp.asarray(x, dtype=jnp.result_type(float))
+    return p[None, :] if p.ndim == 1 else p
+
+
 def _ramp(x, smooth: bool):
     x = jnp.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x) if smooth else x
@@ -496,8 +506,10 @@ class ProgrammedBurn(AbstractEOS):
 
     Over a step to ``t + dt``:
 
-    - time burn: the detonation, lit at time ``t_d`` at the detonators ``points``, reaches ``X`` at
-      the lighting time ``t_b = t_d + min_k |X - X_k| / D`` (the earliest detonator wins), and
+    - time burn: the detonation, lit at time ``t_d`` at the detonators, reaches ``X`` at the lighting
+      time ``t_b = t_d + d(X) / D``, ``d`` the distance to the nearest detonator: a point ``X_k``
+      (``|X - X_k|``) or a plane ``n . X = c`` (``|n . X - c| / |n|``, Huygens' straight-line burn; a
+      line in 2D), the earliest winning; and
       ``F_time = ramp((t + dt - t_b) / (width / D))``; ``width`` is the burn's length (Uintah's
       ``ProgramBurn`` takes 1.5 particle sizes);
     - volume burn: ``F_volume = ramp((1 - J_new) / (1 - J_CJ))``, complete at the CJ compression;
@@ -509,7 +521,8 @@ class ProgrammedBurn(AbstractEOS):
     either case: the minimum over several detonators, the maximum of the two criteria (``"max"``) and
     the maximum with the old ``lambda``.
 
-    Detonators are points; a plane is not supported, except that in 1D a point is a plane. A reactant
+    Detonators are ``points`` and ``planes`` (in 1D a point is a plane; a line in 3D is not offered). A
+    reactant
     ``None`` is inert: zero pressure (``a_r = b_r = 0``), the products alone scaled by ``lambda``. The
     wrapped EOSs must have no internal variables of their own.
 
@@ -518,12 +531,14 @@ class ProgrammedBurn(AbstractEOS):
         products: the products' EOS.
         D: detonation speed, > 0.
         points: detonator positions, ``(k, dim)``; one point may be given as a ``(dim,)`` vector, one
-            1D point as a number.
+            1D point as a number; ``k = 0`` (an array ``(0, dim)``) with ``planes``.
         width: the burn's length, > 0; the time burn lasts ``width / D``.
         J_CJ: the CJ volume ratio, in ``(0, 1)``, where the volume burn completes.
         t_d: detonation time (default 0).
         burn: ``"time"`` (default), ``"volume"`` or ``"max"``.
         smooth: whether the ramp is the C1 smoothstep (default ``False``: linear).
+        planes: plane detonators, ``(m, dim + 1)`` rows ``(n, c)`` for ``n . X = c`` (``n`` not zero),
+            or ``None`` (default).
     """
 
     reactant: AbstractEOS | None
@@ -535,6 +550,7 @@ class ProgrammedBurn(AbstractEOS):
     t_d: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
     burn: str = eqx.field(static=True, default="time")
     smooth: bool = eqx.field(static=True, default=False)
+    planes: Float[Array, "m dim1"] | None = eqx.field(converter=_as_planes, default=None)
 
     def __check_init__(self):
         if self.reactant is not None and not isinstance(self.reactant, AbstractEOS):
@@ -552,8 +568,20 @@ class ProgrammedBurn(AbstractEOS):
         check_greater("J_CJ", self.J_CJ, 0.0)
         check_less("J_CJ", self.J_CJ, 1.0)
         check_finite("t_d", self.t_d)
-        if self.points.ndim != 2 or self.points.shape[0] < 1:
-            raise ValueError(f"points must be an array (k, dim) with k >= 1, got shape {self.points.shape}")
+        if self.points.ndim != 2:
+            raise ValueError(f"points must be an array (k, dim), got shape {self.points.shape}")
+        dim = self.points.shape[1]
+        if self.planes is not None:
+            if self.planes.ndim != 2 or self.planes.shape[1] != dim + 1:
+                raise ValueError(
+                    f"planes must be an array (m, dim + 1) of rows (n, c) with dim = {dim} (the points'), "
+                    f"got shape {self.planes.shape}"
+                )
+            check_finite("planes", self.planes)
+            if is_concrete(self.planes) and bool(jnp.any(jnp.all(self.planes[:, :-1] == 0.0, axis=1))):
+                raise ValueError("planes: a plane's normal n must not be zero")
+        if self.points.shape[0] + (0 if self.planes is None else self.planes.shape[0]) < 1:
+            raise ValueError("give at least one detonator: points (k >= 1) or planes")
         check_finite("points", self.points)
         probe = jax.ShapeDtypeStruct((self.points.shape[1],), self.points.dtype)
         for name, eos in (("reactant", self.reactant), ("products", self.products)):
@@ -561,7 +589,8 @@ class ProgrammedBurn(AbstractEOS):
                 raise ValueError(f"{name} must have no internal variables ({type(eos).__name__} has some)")
 
     def lighting_time(self, X: Float[Array, " dim"]) -> Float[Array, ""]:
-        """When the detonation reaches a particle: ``t_d + min_k |X - X_k| / D``.
+        """When the detonation reaches a particle: ``t_d + d(X) / D``, ``d`` the distance to the nearest
+        detonator (point or plane).
 
         Args:
             X: the particle's reference position.
@@ -569,10 +598,15 @@ class ProgrammedBurn(AbstractEOS):
         Returns:
             ``t_b``.
         """
-        r2 = jnp.sum(jnp.square(X[None, :] - self.points), axis=-1)
-        pos = r2 > 0
-        r = jnp.where(pos, jnp.sqrt(jnp.where(pos, r2, 1.0)), 0.0)  # a zero gradient on a detonator
-        return self.t_d + jnp.min(r) / self.D
+        distances = []
+        if self.points.shape[0] > 0:
+            r2 = jnp.sum(jnp.square(X[None, :] - self.points), axis=-1)
+            pos = r2 > 0
+            distances.append(jnp.where(pos, jnp.sqrt(jnp.where(pos, r2, 1.0)), 0.0))  # 0 gradient on one
+        if self.planes is not None:
+            n, c = self.planes[:, :-1], self.planes[:, -1]
+            distances.append(jnp.abs(n @ X - c) / jnp.sqrt(jnp.sum(n * n, axis=1)))
+        return self.t_d + jnp.min(jnp.concatenate(distances)) / self.D
 
     def burn_fraction(
         self, X: Float[Array, " dim"], t: Float[Array, ""], J: Float[Array, ""]

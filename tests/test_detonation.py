@@ -216,3 +216,28 @@ def test_gradient_of_a_run_to_an_end_time_is_finite_and_right():
     g = float(jax.grad(mean_p)(jnp.asarray(8000.0)))
     fd = float((mean_p(jnp.asarray(8000.01)) - mean_p(jnp.asarray(7999.99))) / 0.02)
     assert np.isfinite(g) and abs(g - fd) < 1e-4 * abs(fd), (g, fd)
+
+
+@pytest.mark.slow
+def test_a_plane_detonator_lights_a_2d_slab_as_a_plane_front():
+    """A 2D slab lit by the plane x = 0 (Huygens' straight-line burn): the burn fraction depends on x
+    alone, and the front has crossed the distance D t."""
+    D, h = 8000.0, 1e-3
+    products = jm.explosives.GammaLawIsentrope(rho0=1875.0, D=D, gamma=3.0)
+    burn = jm.explosives.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=D,
+        points=jnp.zeros((0, 2)),
+        width=1.5e-3,
+        J_CJ=0.75,
+        planes=[[1.0, 0.0, 0.0]],
+    )
+    region = jm.Region(jm.geometry.Box((0.0, 0.0), (12.0, 12.0)), burn, 1875.0, (0.0, 0.0), 4e6)
+    scene = jm.Bodies(parts=(region,), dim=2, cells=12, h=h, ppc=1, left="wall", right="free", pad=4)
+    sol = jm.simulate(scene, jm.CPDI(), dt=2e-8, steps=30, viscosity=jm.ArtificialViscosity())
+    lam = np.asarray(sol.state.internal["lambda"]).reshape(12, 12)  # particles by x, then y
+    np.testing.assert_array_equal(lam, np.broadcast_to(lam[:, :1], lam.shape))
+    x = (np.arange(12) + 0.5) * h
+    front = D * 30 * 2e-8  # 4.8 mm
+    assert np.all(lam[x < front - 1.5e-3, 0] == 1.0) and np.all(lam[x > front, 0] == 0.0)

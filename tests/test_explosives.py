@@ -326,3 +326,36 @@ def test_bad_inputs_name_the_parameter(build, name):
 def test_bad_burn_lists_the_allowed_values():
     with pytest.raises(ValueError, match="'time', 'volume', 'max'"):
         _burn(burn="fast")
+
+
+def test_plane_detonators_light_by_distance_the_earliest_winning():
+    """A plane n . X = c lights X at t_d + |n . X - c| / (|n| D) (Huygens' straight-line burn); with a
+    point as well, the earlier of the two."""
+    products = ex.GammaLawIsentrope(rho0=1.0, D=2.0, gamma=3.0)
+    plane = ex.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=2.0,
+        points=jnp.zeros((0, 2)),
+        width=0.1,
+        J_CJ=0.75,
+        t_d=0.5,
+        planes=[[3.0, 4.0, 1.0]],  # 3 x + 4 y = 1, |n| = 5
+    )
+    X = jnp.array([0.6, 0.2])
+    assert float(plane.lighting_time(X)) == pytest.approx(0.5 + abs(1.8 + 0.8 - 1.0) / 5.0 / 2.0, rel=1e-15)
+    both = ex.ProgrammedBurn(
+        reactant=None, products=products, D=2.0, points=[[0.6, 0.3]], width=0.1, J_CJ=0.75, planes=[3, 4, 1]
+    )
+    assert float(both.lighting_time(X)) == pytest.approx(0.1 / 2.0, rel=1e-14)  # the point, 0.1 away
+    far = jnp.array([-2.0, 0.0])
+    assert float(both.lighting_time(far)) == pytest.approx(7.0 / 5.0 / 2.0, rel=1e-15)  # the plane
+    g = jax.grad(lambda x: plane.lighting_time(x))(X)
+    np.testing.assert_allclose(g, np.array([3.0, 4.0]) / 5.0 / 2.0, rtol=1e-15)
+    for kwargs, match in (
+        (dict(points=jnp.zeros((0, 2))), "at least one detonator"),
+        (dict(points=jnp.zeros((0, 2)), planes=[[0.0, 0.0, 1.0]]), "normal n must not be zero"),
+        (dict(points=[[0.0, 0.0]], planes=[[1.0, 0.0]]), "planes must be an array"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            ex.ProgrammedBurn(reactant=None, products=products, D=2.0, width=0.1, J_CJ=0.75, **kwargs)
