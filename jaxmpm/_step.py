@@ -170,12 +170,17 @@ def _check_detonators(scene: AbstractScene) -> None:
         if not isinstance(burn, ProgrammedBurn) or not is_concrete(burn.points) or not is_concrete(scene.h):
             continue
         points, top = np.asarray(burn.points), float(scene.cells * scene.h)
+        if points.shape[1] != scene.dim:
+            raise ValueError(
+                f"region {k}: its ProgrammedBurn's detonators are {points.shape[1]}D points, the scene is "
+                f"{scene.dim}D"
+            )
         outside = np.any((points < 0.0) | (points > top), axis=1)
-        if points.shape[1] != scene.dim or outside.any():
-            bad = points[np.argmax(outside)] if outside.any() else points[0]
+        if outside.any():
+            i = int(np.argmax(outside))
             raise ValueError(
                 f"region {k}: a detonator of its ProgrammedBurn lies outside the body's box [0, {top:g}]^"
-                f"{scene.dim}: points[{int(np.argmax(outside))}] = {bad.tolist()}"
+                f"{scene.dim}: points[{i}] = {points[i].tolist()}"
             )
 
 

@@ -241,3 +241,20 @@ def test_a_plane_detonator_lights_a_2d_slab_as_a_plane_front():
     x = (np.arange(12) + 0.5) * h
     front = D * 30 * 2e-8  # 4.8 mm
     assert np.all(lam[x < front - 1.5e-3, 0] == 1.0) and np.all(lam[x > front, 0] == 0.0)
+
+
+def test_detonators_of_another_dimension_are_refused():
+    products = jm.explosives.GammaLawIsentrope(rho0=1875.0, D=8000.0, gamma=3.0)
+    burn = jm.explosives.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=8000.0,
+        points=jnp.zeros((0, 2)),
+        width=1e-3,
+        J_CJ=0.75,
+        planes=[[1.0, 0.0, 0.0]],
+    )
+    region = jm.Region(jm.geometry.Box(0.0, 10.0), burn, 1875.0, 0.0, 4e6)
+    scene = jm.Bodies(parts=(region,), cells=10, h=0.01)
+    with pytest.raises(ValueError, match="detonators are 2D points, the scene is 1D"):
+        jm.simulate(scene, jm.MPQ(), dt=1e-8, steps=1)
