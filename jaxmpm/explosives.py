@@ -11,7 +11,8 @@ speed and the detonator positions. Units are any consistent set (SI in the comma
 - ``GammaLawIsentrope``: the CJ isentrope of gamma-law products.
 - ``Murnaghan``: the unreacted explosive, Uintah's form.
 - ``ProgrammedBurn``: a reactant and its products mixed by a burn fraction ``lambda`` that a
-  detonation front lit from fixed points sets (time burn), compression sets (volume burn) or both.
+  detonation front lit from fixed points or planes sets (time burn), compression sets (volume burn)
+  or both.
 - ``cj_state``: the Chapman-Jouguet state implied by a products EOS with energy, differentiable.
 - ``EXPLOSIVES``, ``jwl``, ``check_cj_consistency``: tabulated JWL rows and their check.
 
