@@ -65,6 +65,9 @@ from .materials import (
     AbstractMaterial as AbstractMaterial,
 )
 from .materials import (
+    AbstractStatelessEOS as AbstractStatelessEOS,
+)
+from .materials import (
     AdiabaticGas as AdiabaticGas,
 )
 from .materials import (

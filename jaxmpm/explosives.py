@@ -27,10 +27,10 @@ from jaxtyping import Array, Float
 
 from ._checks import check_finite, check_greater, check_less, check_positive, check_real, is_concrete
 from ._util import as_float
-from .materials import AbstractEOS
+from .materials import AbstractEOS, AbstractStatelessEOS
 
 
-class JWL(AbstractEOS):
+class JWL(AbstractStatelessEOS):
     """Jones-Wilkins-Lee detonation products, full form with energy.
 
     With the relative volume ``V = rho0 / rho`` and the energy per reference volume ``E = rho0 e``,
@@ -73,19 +73,8 @@ class JWL(AbstractEOS):
         ) * jnp.exp(-self.R2 * V)
         return a, self.w * rho
 
-    def initial_internal(self, X):
-        del X
-        return None
 
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
-
-
-class JWLIsentrope(AbstractEOS):
+class JWLIsentrope(AbstractStatelessEOS):
     """The JWL principal isentrope, barotropic: ``p = A exp(-R1 V) + B exp(-R2 V) + C V^-(w + 1)``.
 
     ``V = rho0 / rho``; ``b = 0``, the energy plays no part. ``JWLIsentrope.from_jwl`` picks ``C`` so
@@ -146,19 +135,8 @@ class JWLIsentrope(AbstractEOS):
         p = self.A * jnp.exp(-self.R1 * V) + self.B * jnp.exp(-self.R2 * V) + self.C * V ** (-(self.w + 1.0))
         return p, jnp.zeros_like(rho)
 
-    def initial_internal(self, X):
-        del X
-        return None
 
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
-
-
-class GammaLawIsentrope(AbstractEOS):
+class GammaLawIsentrope(AbstractStatelessEOS):
     """Products on the CJ isentrope of a gamma-law detonation: ``p = p_CJ (V / V_CJ)^-gamma``.
 
     ``V = rho0 / rho``, ``p_CJ = rho0 D^2 / (gamma + 1)`` and ``V_CJ = gamma / (gamma + 1)`` (Fickett &
@@ -212,19 +190,8 @@ class GammaLawIsentrope(AbstractEOS):
         p = self.rho0 * self.D**2 / g1 * (V * g1 / self.gamma) ** (-self.gamma)
         return p, jnp.zeros_like(rho)
 
-    def initial_internal(self, X):
-        del X
-        return None
 
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
-
-
-class Murnaghan(AbstractEOS):
+class Murnaghan(AbstractStatelessEOS):
     """Unreacted explosive, Murnaghan's EOS in Uintah's form: ``p = (J^-n - 1) / (n K)``, ``J = rho0 / rho``.
 
     ``K`` is a compressibility, the inverse of the bulk modulus at ``rho0`` (``dp/drho = 1 / (K rho0)``
@@ -268,17 +235,6 @@ class Murnaghan(AbstractEOS):
         del z
         J = self.rho0 / rho
         return (J ** (-self.n) - 1.0) / (self.n * self.K), jnp.zeros_like(rho)
-
-    def initial_internal(self, X):
-        del X
-        return None
-
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
 
 
 # The CJ search: D^2 on the products' Hugoniot, scanned on a grid of J, then a bracketed Newton step

@@ -259,7 +259,8 @@ class AbstractEOS(eqx.Module):
     exactly because ``p`` is affine in ``e``; Wilkins, "Calculation of elastic-plastic flow", 1964).
 
     A concrete EOS implements ``pressure_terms``, ``initial_internal``, ``update_internal`` and
-    ``front_speed``.
+    ``front_speed``; one without internal variables or a front of its own derives from
+    ``AbstractStatelessEOS`` and implements ``pressure_terms`` alone.
     """
 
     @abc.abstractmethod
@@ -359,7 +360,23 @@ class AbstractEOS(eqx.Module):
         return jnp.where(pos, jnp.sqrt(jnp.where(pos, c2, 1.0)), 0.0)
 
 
-class IdealGas(AbstractEOS):
+class AbstractStatelessEOS(AbstractEOS):
+    """An EOS without internal variables or a front of its own: a concrete one implements
+    ``pressure_terms`` alone (the ideal gas, Mie-Grueneisen, the explosives' products and reactants)."""
+
+    def initial_internal(self, X):
+        del X
+        return None
+
+    def update_internal(self, z, X, t, dt, J_old, J_new):
+        del X, t, dt, J_old, J_new
+        return z
+
+    def front_speed(self):
+        return None
+
+
+class IdealGas(AbstractStatelessEOS):
     """Ideal (polytropic) gas: ``p = (gamma - 1) rho e``, ``c = sqrt(gamma p / rho)``.
 
     The Euler equations' gas of the shock tube and Noh's problem (Toro, "Riemann Solvers and
@@ -378,19 +395,8 @@ class IdealGas(AbstractEOS):
         del z
         return jnp.zeros_like(rho), (self.gamma - 1.0) * rho
 
-    def initial_internal(self, X):
-        del X
-        return None
 
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
-
-
-class MieGruneisen(AbstractEOS):
+class MieGruneisen(AbstractStatelessEOS):
     """Mie-Grueneisen solid on its linear ``Us = c0 + s up`` Hugoniot, with ``rho Gamma = rho_ref Gamma0``.
 
     With ``eta = 1 - rho_ref / rho`` (compression > 0), the Hugoniot pressure and energy are ``p_H =
@@ -426,17 +432,6 @@ class MieGruneisen(AbstractEOS):
         eta = 1.0 - self.rho_ref / rho
         p_h = self.rho_ref * self.c0**2 * eta / jnp.square(1.0 - self.s * eta)
         return p_h * (1.0 - 0.5 * self.Gamma0 * eta), self.Gamma0 * self.rho_ref * jnp.ones_like(rho)
-
-    def initial_internal(self, X):
-        del X
-        return None
-
-    def update_internal(self, z, X, t, dt, J_old, J_new):
-        del X, t, dt, J_old, J_new
-        return z
-
-    def front_speed(self):
-        return None
 
 
 MIE_GRUNEISEN: dict[str, dict[str, float]] = {
