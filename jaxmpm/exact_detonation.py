@@ -139,15 +139,8 @@ def gamma_law_cj(rho0, D, gamma):
 
 
 def _gamma_cj(rho0, D, gamma):
-    gp = gamma + 1.0
-    return dict(
-        D=D,
-        P_CJ=rho0 * D**2 / gp,
-        J_CJ=gamma / gp,
-        u_CJ=D / gp,
-        c_CJ=gamma * D / gp,
-        rho_CJ=rho0 * gp / gamma,
-    )
+    cj = GammaLawIsentrope(rho0=rho0, D=D, gamma=gamma).cj()
+    return {k: v for k, v in cj.items() if k != "e_CJ"}
 
 
 def _gamma_wall(rho0, D, gamma):
