@@ -164,7 +164,8 @@ def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
 
 
 def _check_detonators(scene: AbstractScene) -> None:
-    """A programmed burn's detonators lie in the scene's box ``[0, cells h]^dim`` (checked where concrete)."""
+    """A programmed burn's detonator points, and the given point of each line detonator, lie in the scene's
+    box ``[0, cells h]^dim`` (checked where concrete)."""
     for k, region in enumerate(scene.regions()):
         burn = region.material
         if not isinstance(burn, ProgrammedBurn) or not is_concrete(burn.points) or not is_concrete(scene.h):
@@ -175,13 +176,17 @@ def _check_detonators(scene: AbstractScene) -> None:
                 f"region {k}: its ProgrammedBurn's detonators are {points.shape[1]}D points, the scene is "
                 f"{scene.dim}D"
             )
-        outside = np.any((points < 0.0) | (points > top), axis=1)
-        if outside.any():
-            i = int(np.argmax(outside))
-            raise ValueError(
-                f"region {k}: a detonator of its ProgrammedBurn lies outside the body's box [0, {top:g}]^"
-                f"{scene.dim}: points[{i}] = {points[i].tolist()}"
-            )
+        anchors = [("points", points)]
+        if burn.lines is not None and is_concrete(burn.lines):
+            anchors.append(("lines", np.asarray(burn.lines)[:, : scene.dim]))  # a line's point a
+        for name, at in anchors:
+            outside = np.any((at < 0.0) | (at > top), axis=1)
+            if outside.any():
+                i = int(np.argmax(outside))
+                raise ValueError(
+                    f"region {k}: a detonator of its ProgrammedBurn lies outside the body's box [0, {top:g}]^"
+                    f"{scene.dim}: {name}[{i}] = {at[i].tolist()}"
+                )
 
 
 class _Group(eqx.Module):

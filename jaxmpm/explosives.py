@@ -448,6 +448,16 @@ def _as_planes(x: object) -> Float[Array, "m dim1"] | None:
     return p[None, :] if p.ndim == 1 else p
 
 
+def _as_lines(x: object) -> Float[Array, "m dim2"] | None:
+    """Line detonators as an ``(m, 2 dim)`` array of rows ``(a, d)``, the line through ``a`` along
+    ``d`` (one line may be given as a vector); ``None`` for none."""
+    if x is None:
+        return None
+    check_real("lines", x)
+    p = jnp.asarray(x, dtype=jnp.result_type(float))
+    return p[None, :] if p.ndim == 1 else p
+
+
 def _ramp(x, smooth: bool):
     x = jnp.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x) if smooth else x
@@ -465,8 +475,9 @@ class ProgrammedBurn(AbstractEOS):
 
     - time burn: the detonation, lit at time ``t_d`` at the detonators, reaches ``X`` at the lighting
       time ``t_b = t_d + d(X) / D``, ``d`` the distance to the nearest detonator: a point ``X_k``
-      (``|X - X_k|``) or a plane ``n . X = c`` (``|n . X - c| / |n|``, Huygens' straight-line burn; a
-      line in 2D), the earliest winning; and
+      (``|X - X_k|``), a plane ``n . X = c`` (``|n . X - c| / |n|``; a line in 2D) or a line through
+      ``a`` along ``d`` (``|(X - a) - ((X - a) . d) d / |d|^2|``, a detonating cord in 3D): Huygens'
+      straight-line burn, the earliest detonator winning; and
       ``F_time = ramp((t + dt - t_b) / (width / D))``; ``width`` is the burn's length (Uintah's
       ``ProgramBurn`` takes 1.5 particle sizes);
     - volume burn: ``F_volume = ramp((1 - J_new) / (1 - J_CJ))``, complete at the CJ compression;
@@ -478,17 +489,16 @@ class ProgrammedBurn(AbstractEOS):
     either case: the minimum over several detonators, the maximum of the two criteria (``"max"``) and
     the maximum with the old ``lambda``.
 
-    Detonators are ``points`` and ``planes`` (in 1D a point is a plane; a line in 3D is not offered). A
-    reactant
-    ``None`` is inert: zero pressure (``a_r = b_r = 0``), the products alone scaled by ``lambda``. The
-    wrapped EOSs must have no internal variables of their own.
+    Detonators are ``points``, ``planes`` and ``lines`` (in 1D a point is a plane; in 2D a line is a
+    plane). A reactant ``None`` is inert: zero pressure (``a_r = b_r = 0``), the products alone scaled
+    by ``lambda``. The wrapped EOSs must have no internal variables of their own.
 
     Attributes:
         reactant: the unreacted explosive's EOS, or ``None`` for an inert reactant of zero pressure.
         products: the products' EOS.
         D: detonation speed, > 0.
         points: detonator positions, ``(k, dim)``; one point may be given as a ``(dim,)`` vector, one
-            1D point as a number; ``k = 0`` (an array ``(0, dim)``) with ``planes``.
+            1D point as a number; ``k = 0`` (an array ``(0, dim)``) with ``planes`` or ``lines``.
         width: the burn's length, > 0; the time burn lasts ``width / D``.
         J_CJ: the CJ volume ratio, in ``(0, 1)``, where the volume burn completes.
         t_d: detonation time (default 0).
@@ -496,6 +506,8 @@ class ProgrammedBurn(AbstractEOS):
         smooth: whether the ramp is the C1 smoothstep (default ``False``: linear).
         planes: plane detonators, ``(m, dim + 1)`` rows ``(n, c)`` for ``n . X = c`` (``n`` not zero),
             or ``None`` (default).
+        lines: line detonators (2D and 3D), ``(m, 2 dim)`` rows ``(a, d)`` for the line through ``a``
+            along ``d`` (``d`` not zero), or ``None`` (default).
     """
 
     reactant: AbstractEOS | None
@@ -508,6 +520,7 @@ class ProgrammedBurn(AbstractEOS):
     burn: str = eqx.field(static=True, default="time")
     smooth: bool = eqx.field(static=True, default=False)
     planes: Float[Array, "m dim1"] | None = eqx.field(converter=_as_planes, default=None)
+    lines: Float[Array, "m dim2"] | None = eqx.field(converter=_as_lines, default=None)
 
     def __check_init__(self):
         if self.reactant is not None and not isinstance(self.reactant, AbstractEOS):
@@ -537,8 +550,18 @@ class ProgrammedBurn(AbstractEOS):
             check_finite("planes", self.planes)
             if is_concrete(self.planes) and bool(jnp.any(jnp.all(self.planes[:, :-1] == 0.0, axis=1))):
                 raise ValueError("planes: a plane's normal n must not be zero")
-        if self.points.shape[0] + (0 if self.planes is None else self.planes.shape[0]) < 1:
-            raise ValueError("give at least one detonator: points (k >= 1) or planes")
+        if self.lines is not None:
+            if dim < 2 or self.lines.ndim != 2 or self.lines.shape[1] != 2 * dim:
+                raise ValueError(
+                    f"lines must be an array (m, 2 dim) of rows (a, d) with dim = {dim} (the points') of 2 "
+                    f"or 3, got shape {self.lines.shape}"
+                )
+            check_finite("lines", self.lines)
+            if is_concrete(self.lines) and bool(jnp.any(jnp.all(self.lines[:, dim:] == 0.0, axis=1))):
+                raise ValueError("lines: a line's direction d must not be zero")
+        count = sum(0 if a is None else a.shape[0] for a in (self.points, self.planes, self.lines))
+        if count < 1:
+            raise ValueError("give at least one detonator: points (k >= 1), planes or lines")
         check_finite("points", self.points)
         probe = jax.ShapeDtypeStruct((self.points.shape[1],), self.points.dtype)
         for name, eos in (("reactant", self.reactant), ("products", self.products)):
@@ -547,7 +570,7 @@ class ProgrammedBurn(AbstractEOS):
 
     def lighting_time(self, X: Float[Array, " dim"]) -> Float[Array, ""]:
         """When the detonation reaches a particle: ``t_d + d(X) / D``, ``d`` the distance to the nearest
-        detonator (point or plane).
+        detonator (point, plane or line).
 
         Args:
             X: the particle's reference position.
@@ -555,14 +578,23 @@ class ProgrammedBurn(AbstractEOS):
         Returns:
             ``t_b``.
         """
+
+        def norm(r2):  # 0 gradient on a detonator, not NaN
+            pos = r2 > 0
+            return jnp.where(pos, jnp.sqrt(jnp.where(pos, r2, 1.0)), 0.0)
+
         distances = []
         if self.points.shape[0] > 0:
-            r2 = jnp.sum(jnp.square(X[None, :] - self.points), axis=-1)
-            pos = r2 > 0
-            distances.append(jnp.where(pos, jnp.sqrt(jnp.where(pos, r2, 1.0)), 0.0))  # 0 gradient on one
+            distances.append(norm(jnp.sum(jnp.square(X[None, :] - self.points), axis=-1)))
         if self.planes is not None:
             n, c = self.planes[:, :-1], self.planes[:, -1]
             distances.append(jnp.abs(n @ X - c) / jnp.sqrt(jnp.sum(n * n, axis=1)))
+        if self.lines is not None:
+            dim = X.shape[0]
+            a, d = self.lines[:, :dim], self.lines[:, dim:]
+            r = X[None, :] - a
+            along = jnp.sum(r * d, axis=1) / jnp.sum(d * d, axis=1)
+            distances.append(norm(jnp.sum(jnp.square(r - along[:, None] * d), axis=1)))
         return self.t_d + jnp.min(jnp.concatenate(distances)) / self.D
 
     def burn_fraction(

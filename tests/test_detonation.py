@@ -258,3 +258,43 @@ def test_detonators_of_another_dimension_are_refused():
     scene = jm.Bodies(parts=(region,), cells=10, h=0.01)
     with pytest.raises(ValueError, match="detonators are 2D points, the scene is 1D"):
         jm.simulate(scene, jm.MPQ(), dt=1e-8, steps=1)
+
+
+def test_a_line_detonator_lights_a_3d_block_as_a_cylindrical_front():
+    """A 3D block lit by the line along z through (0, 0): the burn fraction depends on the distance from
+    the line alone (equal for particles at equal distance, whatever their z), lit where the front has
+    passed; a line whose point lies outside the box is refused."""
+    D, h = 8000.0, 1e-3
+    products = jm.explosives.GammaLawIsentrope(rho0=1875.0, D=D, gamma=3.0)
+
+    def burn(lines):
+        return jm.explosives.ProgrammedBurn(
+            reactant=None,
+            products=products,
+            D=D,
+            points=jnp.zeros((0, 3)),
+            width=1e-3,
+            J_CJ=0.75,
+            lines=lines,
+        )
+
+    def scene(lines):
+        region = jm.Region(jm.geometry.Box((0.0,) * 3, (6.0, 6.0, 3.0)), burn(lines), 1875.0, (0.0,) * 3, 4e6)
+        return jm.Bodies(parts=(region,), dim=3, cells=6, h=h, ppc=1, left="symmetry", right="free", pad=3)
+
+    steps, dt = 8, 5e-8
+    sol = jm.simulate(scene([[0.0, 0.0, 0.0, 0.0, 0.0, 1.0]]), jm.CPDI(), dt=dt, steps=steps)
+    assert int(sol.state.status) == 0
+    lam = np.asarray(sol.state.internal["lambda"])
+    X = np.asarray(sol.body.X)
+    rho = np.round(np.hypot(X[:, 0], X[:, 1]) / h, 9)
+    for value in np.unique(rho):
+        same = lam[rho == value]
+        np.testing.assert_array_equal(same, np.full_like(same, same[0]))
+    front = D * steps * dt  # 3.2 mm
+    t_end = steps * dt
+    expected = np.clip((t_end - rho * h / D) * D / 1e-3, 0.0, 1.0)
+    np.testing.assert_allclose(lam, expected, atol=1e-12)
+    assert lam[rho * h < front - 1e-3].min() == 1.0 and lam[rho * h > front].max() == 0.0
+    with pytest.raises(ValueError, match=r"lines\[0\] = \[0.0, 7.0, 0.0\]"):
+        jm.simulate(scene([[0.0, 7.0, 0.0, 0.0, 0.0, 1.0]]), jm.CPDI(), dt=dt, steps=1)

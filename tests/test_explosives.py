@@ -359,3 +359,77 @@ def test_plane_detonators_light_by_distance_the_earliest_winning():
     ):
         with pytest.raises(ValueError, match=match):
             ex.ProgrammedBurn(reactant=None, products=products, D=2.0, width=0.1, J_CJ=0.75, **kwargs)
+
+
+def test_line_detonators_light_by_the_distance_to_the_line():
+    """A line through a along d lights X at t_d + |(X - a) - ((X - a) . d) d / |d|^2| / D (a
+    detonating cord in 3D); with a point as well, the earlier; on the line the derivative is 0, not NaN;
+    in 2D a line lights as the plane through it."""
+    products = ex.GammaLawIsentrope(rho0=1.0, D=2.0, gamma=3.0)
+    a, d = np.array([0.1, 0.2, 0.3]), np.array([1.0, 2.0, 2.0])  # |d| = 3
+    cord = ex.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=2.0,
+        points=jnp.zeros((0, 3)),
+        width=0.1,
+        J_CJ=0.75,
+        t_d=0.25,
+        lines=np.concatenate([a, d]),
+    )
+    rng = np.random.default_rng(0)
+    for X in rng.uniform(-1.0, 1.0, (5, 3)):
+        r = X - a
+        dist = np.linalg.norm(r - (r @ d) / 9.0 * d)
+        assert float(cord.lighting_time(jnp.asarray(X))) == pytest.approx(0.25 + dist / 2.0, rel=1e-14)
+    on_line = jnp.asarray(a + 0.5 * d)
+    assert float(cord.lighting_time(on_line)) == pytest.approx(0.25, abs=1e-15)
+    np.testing.assert_array_equal(jax.grad(cord.lighting_time)(on_line), np.zeros(3))
+    X = jnp.array([0.6, -0.4, 0.2])
+    r = np.asarray(X) - a
+    normal = r - (r @ d) / 9.0 * d
+    np.testing.assert_allclose(
+        jax.grad(cord.lighting_time)(X), normal / np.linalg.norm(normal) / 2.0, rtol=1e-13
+    )
+    both = ex.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=2.0,
+        points=[[0.6, -0.4, 0.3]],
+        width=0.1,
+        J_CJ=0.75,
+        lines=np.concatenate([a, d]),
+    )
+    assert float(both.lighting_time(X)) == pytest.approx(0.1 / 2.0, rel=1e-13)  # the point, 0.1 away
+    line_2d = ex.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=2.0,
+        points=jnp.zeros((0, 2)),
+        width=0.1,
+        J_CJ=0.75,
+        lines=[[0.0, 0.25, 4.0, -3.0]],  # through (0, 1/4) along (4, -3): 3 x + 4 y = 1
+    )
+    plane_2d = ex.ProgrammedBurn(
+        reactant=None,
+        products=products,
+        D=2.0,
+        points=jnp.zeros((0, 2)),
+        width=0.1,
+        J_CJ=0.75,
+        planes=[[3.0, 4.0, 1.0]],
+    )
+    for X2 in rng.uniform(-1.0, 1.0, (5, 2)):
+        assert float(line_2d.lighting_time(jnp.asarray(X2))) == pytest.approx(
+            float(plane_2d.lighting_time(jnp.asarray(X2))), rel=1e-14
+        )
+    for kwargs, match in (
+        (
+            dict(points=jnp.zeros((0, 3)), lines=[[0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]),
+            "direction d must not be zero",
+        ),
+        (dict(points=[[0.0, 0.0, 0.0]], lines=[[0.0, 0.0, 1.0, 0.0]]), "lines must be an array"),
+        (dict(points=[0.5], lines=[[0.0, 1.0]]), "lines must be an array"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            ex.ProgrammedBurn(reactant=None, products=products, D=2.0, width=0.1, J_CJ=0.75, **kwargs)
