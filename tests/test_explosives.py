@@ -433,3 +433,30 @@ def test_line_detonators_light_by_the_distance_to_the_line():
     ):
         with pytest.raises(ValueError, match=match):
             ex.ProgrammedBurn(reactant=None, products=products, D=2.0, width=0.1, J_CJ=0.75, **kwargs)
+
+
+def test_cj_energy_implies_the_given_detonation_speed_and_is_differentiable():
+    """cj_energy(products, rho0, D) is the e0 at which the products imply D: for each handbook row at its
+    tabulated D it returns the row's E0 to the row's own consistency (0.2%), the CJ state it implies has
+    speed D to round-off, and its derivatives (implicit function) match central differences."""
+    for name, row in ex.EXPLOSIVES.items():
+        eos, _ = ex.jwl(name)
+        e0 = ex.cj_energy(eos, eos.rho0, row["D"])
+        assert float(e0) * row["rho0"] == pytest.approx(row["E0"], rel=2e-3), name  # measured <= 1.8e-3
+        assert float(ex.cj_state(eos, eos.rho0, e0)["D"]) == pytest.approx(row["D"], rel=1e-13), name
+    gamma_law = jm.IdealGas(gamma=3.0)  # D^2 = 2 (gamma^2 - 1) e0 in closed form
+    assert float(ex.cj_energy(gamma_law, 1600.0, 8000.0)) == pytest.approx(8000.0**2 / 16.0, rel=1e-12)
+    eos, _ = ex.jwl("compb")
+
+    def e0_of(A, D):
+        return ex.cj_energy(ex.JWL(eos.rho0, A, eos.B, eos.R1, eos.R2, eos.w), eos.rho0, D)
+
+    A, D = float(eos.A), 7980.0
+    gA, gD = jax.grad(e0_of, argnums=(0, 1))(jnp.asarray(A), jnp.asarray(D))
+    fdA = (e0_of(A * (1 + 1e-5), D) - e0_of(A * (1 - 1e-5), D)) / (2e-5 * A)
+    fdD = (e0_of(A, D + 0.1) - e0_of(A, D - 0.1)) / 0.2
+    assert float(gA) == pytest.approx(float(fdA), rel=1e-6) and float(gD) == pytest.approx(
+        float(fdD), rel=1e-6
+    )
+    with pytest.raises(ValueError, match="D must be"):
+        ex.cj_energy(eos, eos.rho0, -1.0)

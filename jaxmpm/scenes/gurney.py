@@ -8,7 +8,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_greater, check_positive, check_real
 from .._util import as_float
-from ..explosives import BURNS, ProgrammedBurn
+from ..explosives import BURNS, EXPLOSIVES, JWL, JWLIsentrope, ProgrammedBurn, cj_energy, cj_state
 from ..geometry import Box
 from ..materials import MIE_GRUNEISEN, MieGruneisen
 from ..particles import Body, State
@@ -36,6 +36,10 @@ def gurney_sandwich(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""
     return sqrt_2E / jnp.sqrt(((1.0 + 2.0 * r) ** 3 + 1.0) / (6.0 * (1.0 + r)) + r)
 
 
+GURNEY_EXPLOSIVES = EXPLOSIVE_NAMES + ("jwl",)
+"""The Gurney slab's ``explosive`` choices: ``Detonation``'s, and ``"jwl"`` of the scene's own constants."""
+
+
 def _fraction(x: object) -> float:
     """``split`` as a Python float (a static parameter: it fixes which particles are the charge's)."""
     check_real("split", x)
@@ -47,12 +51,19 @@ class GurneySlab(AbstractScene):
 
     The setup of Uintah's MPM Gurney input: explosive on ``[0, charge]``, ``charge = split L`` (a
     ``jaxmpm.explosives.ProgrammedBurn`` with the products of ``Detonation``: ``explosive``, ``products``,
-    ``D``, ``gamma``, ``rho0``, ``burn``), then ``plate`` of metal (``MieGruneisen`` of
-    ``MIE_GRUNEISEN[metal]``, at rest at its reference density) on ``[charge, L]``. Both ends are free.
+    ``D``, ``gamma``, ``rho0``, ``burn``; or ``explosive="jwl"``, below), then ``plate`` of metal
+    (``MieGruneisen`` of ``MIE_GRUNEISEN[metal]``, at rest at its reference density) on ``[charge, L]``.
+    Both ends are free.
     The products push the plate, which rings and tends to a terminal velocity; Gurney's formula for an
     open-faced sandwich, ``gurney_velocity``, estimates it from the explosive's Gurney constant
     ``sqrt_2E`` and the mass ratio (a model accurate to a few per cent). For Comp B (``sqrt(2E) = 2.70``
     km/s) on 4 cm, driving 1 cm of 4340 steel, ``M/C = 1.14`` and ``V = 1356`` m/s.
+
+    ``explosive="jwl"`` makes the products a JWL of the scene's own constants ``A, B, R1, R2, w`` (SI;
+    Comp B's by default) at density ``rho0``, whose detonation energy ``E0`` is not given but implied by
+    the detonation speed ``D`` (``jaxmpm.explosives.cj_energy``: the EOS's CJ state has speed ``D``).
+    A fit of the JWL constants to a plate's velocity (``jaxmpm calibrate gurney-slab explosive=jwl --fit
+    A,B``) thus keeps the EOS consistent with the measured ``D``.
 
     ``plate_velocity(state, body)`` is the plate's mean (momentum over mass) velocity. The products
     escape from the free back face at several km/s: ``pad`` (cells of grid beyond the body on each
@@ -63,9 +74,12 @@ class GurneySlab(AbstractScene):
         split: the charge's share of ``L`` (static, in ``(0, 1)``; a particle centre at the split is
             the charge's).
         sqrt_2E: the explosive's Gurney velocity (m/s), for ``gurney_velocity``.
-        D, gamma, rho0: the gamma-law products (with ``explosive="gamma-law"``).
+        D, gamma, rho0: the gamma-law products (with ``explosive="gamma-law"``; ``D`` and ``rho0`` also
+            with ``"jwl"``).
+        A, B, R1, R2, w: the JWL constants (with ``explosive="jwl"``; Pa for ``A`` and ``B``).
         burn_width: the burn's length in particle sizes, >= 1.
-        explosive, products, burn: as for ``Detonation`` (static).
+        explosive: as for ``Detonation``, or ``"jwl"`` (static).
+        products, burn: as for ``Detonation`` (static).
         metal: a key of ``MIE_GRUNEISEN`` (static).
         cells: cells across charge and plate together (``h = L / cells``; static).
         ppc, pad: as for every scene.
@@ -91,6 +105,11 @@ class GurneySlab(AbstractScene):
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=3.0)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1717.0)
     burn_width: Float[Array, ""] = eqx.field(converter=as_float, default=1.5)
+    A: Float[Array, ""] = eqx.field(converter=as_float, default=EXPLOSIVES["compb"]["A"])
+    B: Float[Array, ""] = eqx.field(converter=as_float, default=EXPLOSIVES["compb"]["B"])
+    R1: Float[Array, ""] = eqx.field(converter=as_float, default=EXPLOSIVES["compb"]["R1"])
+    R2: Float[Array, ""] = eqx.field(converter=as_float, default=EXPLOSIVES["compb"]["R2"])
+    w: Float[Array, ""] = eqx.field(converter=as_float, default=EXPLOSIVES["compb"]["w"])
     explosive: str = eqx.field(static=True, default="compb")
     products: str = eqx.field(static=True, default="full")
     burn: str = eqx.field(static=True, default="time")
@@ -101,7 +120,7 @@ class GurneySlab(AbstractScene):
 
     def __check_init__(self):
         for name, value, allowed in (
-            ("explosive", self.explosive, EXPLOSIVE_NAMES),
+            ("explosive", self.explosive, GURNEY_EXPLOSIVES),
             ("products", self.products, PRODUCTS),
             ("burn", self.burn, BURNS),
             ("metal", self.metal, tuple(MIE_GRUNEISEN)),
@@ -115,6 +134,8 @@ class GurneySlab(AbstractScene):
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
         check_greater("burn_width", self.burn_width - 1.0, -1e-12)
+        if self.explosive == "jwl":
+            JWL(self.rho0, self.A, self.B, self.R1, self.R2, self.w)  # its own checks of the constants
 
     @property
     def h(self) -> Float[Array, ""]:
@@ -136,7 +157,16 @@ class GurneySlab(AbstractScene):
         return MieGruneisen(**row), jnp.asarray(row["rho_ref"], dtype=self.h.dtype)
 
     def _explosive(self):
-        rho0, products, e0, cj = explosive_eos(self.explosive, self.products, self.D, self.gamma, self.rho0)
+        if self.explosive == "jwl":
+            full = JWL(self.rho0, self.A, self.B, self.R1, self.R2, self.w)
+            e0 = cj_energy(full, self.rho0, self.D)
+            cj = cj_state(full, self.rho0, e0)
+            products = JWLIsentrope.from_jwl(full, e0) if self.products == "isentrope" else full
+            rho0 = self.rho0
+        else:
+            rho0, products, e0, cj = explosive_eos(
+                self.explosive, self.products, self.D, self.gamma, self.rho0
+            )
         burn = ProgrammedBurn(
             reactant=None,
             products=products,
