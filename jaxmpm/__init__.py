@@ -97,6 +97,8 @@ from .scenes import SCENES as SCENES
 from .scenes import AbstractScene as AbstractScene
 from .scenes import AxisAligned as AxisAligned
 from .scenes import Blast as Blast
+from .scenes import BlastDisk as BlastDisk
+from .scenes import BlastSphere as BlastSphere
 from .scenes import Bodies as Bodies
 from .scenes import Detonation as Detonation
 from .scenes import GasExpansion as GasExpansion

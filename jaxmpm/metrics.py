@@ -451,7 +451,12 @@ def radial_bin(body: Body, centre: Float[ArrayLike, " dim"], bins: int) -> Int[A
 
 
 def angular_spread(
-    state: State, body: Body, centre: Float[ArrayLike, " dim"], bins: int, threshold: float = 1e-3
+    state: State,
+    body: Body,
+    centre: Float[ArrayLike, " dim"],
+    bins: int,
+    threshold: float = 1e-3,
+    detrend: bool = False,
 ) -> dict[str, Array]:
     """The spread of the radial velocity over the particles at a common reference radius.
 
@@ -465,7 +470,10 @@ def angular_spread(
     and the genuine variation of ``v_r(R)`` across the bin: for an exact radial motion the spread
     is that of ``v_r(R)`` over the bin's radii (for a uniform expansion ``v_r = a R``, ``std(R) /
     mean(R)`` over the bin), which goes to zero with the bin width ``R_max / bins``. It is exactly
-    0 only where ``v_r`` is constant across each bin.
+    0 only where ``v_r`` is constant across each bin. With ``detrend=True`` the deviations are taken
+    from the bin's least-squares line in ``R``, ``m_k + b_k (R - mean_k R)``, instead of from ``m_k``:
+    the radial variation is removed to first order (exactly, where ``v_r`` is linear in ``R``), and
+    what remains is the spread at equal radius.
 
     ``max`` and ``rms`` are taken over the counted bins: those with particles and with ``|m_k| >
     threshold * max_k |m_k|`` (a bin at rest, such as the particles near ``c`` where ``v_r -> 0``,
@@ -477,6 +485,7 @@ def angular_spread(
         centre: the centre ``c``.
         bins: number of bins (static, >= 1).
         threshold: the smallest ``|m_k|`` counted, relative to the largest (static).
+        detrend: whether to take the deviations from the bin's line in ``R`` (static).
 
     Returns:
         ``dict(per_bin, max, rms, counted)``: ``per_bin`` the spread of each bin (NaN where not
@@ -492,7 +501,17 @@ def angular_spread(
     count = jax.ops.segment_sum(jnp.ones_like(vr), k, num_segments=bins)
     n_k = jnp.maximum(count, 1.0)
     mean = jax.ops.segment_sum(vr, k, num_segments=bins) / n_k
-    var = jax.ops.segment_sum(jnp.square(vr - mean[k]), k, num_segments=bins) / n_k
+    fit = mean[k]
+    if detrend:
+        R = reference_radius(body, centre)
+        R_mean = jax.ops.segment_sum(R, k, num_segments=bins) / n_k
+        dR = R - R_mean[k]
+        Sxx = jax.ops.segment_sum(jnp.square(dR), k, num_segments=bins)
+        Sxy = jax.ops.segment_sum(dR * vr, k, num_segments=bins)
+        flat = Sxx <= count * jnp.square(1e-10 * jnp.max(R))  # one radius (to round-off): no line
+        slope = jnp.where(flat, 0.0, Sxy / jnp.where(flat, 1.0, Sxx))
+        fit = fit + slope[k] * dR
+    var = jax.ops.segment_sum(jnp.square(vr - fit), k, num_segments=bins) / n_k
     mean_sq = jnp.square(mean)
     counted = (count > 0) & (mean_sq > threshold**2 * jnp.max(mean_sq))
     sq = jnp.where(counted, var / jnp.where(counted, mean_sq, 1.0), 0.0)

@@ -23,7 +23,7 @@ vorticity = jax.jit(metrics.vorticity)
 reference_radius = jax.jit(metrics.reference_radius)
 radial_velocity = jax.jit(metrics.radial_velocity)
 radial_bin = jax.jit(metrics.radial_bin, static_argnames="bins")
-angular_spread = jax.jit(metrics.angular_spread, static_argnames=("bins", "threshold"))
+angular_spread = jax.jit(metrics.angular_spread, static_argnames=("bins", "threshold", "detrend"))
 corner_jacobians = jax.jit(metrics.corner_jacobians)
 folded = jax.jit(metrics.folded)
 folded_domains = jax.jit(metrics.folded_domains)
@@ -225,6 +225,34 @@ def test_angular_spread_of_a_uniform_expansion_is_the_spread_of_R_per_bin(dim, b
     np.testing.assert_allclose(out["per_bin"], want, rtol=TOL, atol=TOL)  # NaN where empty
     assert abs(float(out["max"]) - np.nanmax(want)) < TOL
     assert abs(float(out["rms"]) - np.sqrt(np.nanmean(want**2))) < TOL
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_detrended_spread_takes_out_the_radial_variation(dim):
+    """detrend=True: a v_r linear in R has no spread at all; a v_r quadratic in R has the spread of the
+    residual of each bin's least-squares line; a non-radial part shows either way."""
+    bins = 4
+    body, c = disk_body(dim)
+    R, k = numpy_bins(body, c, bins)
+    e = np.asarray(body.X) - c
+    e_r = e / np.linalg.norm(e, axis=1, keepdims=True)
+    linear = angular_spread(make_state(body.X, v=(0.5 + 0.7 * R)[:, None] * e_r), body, c, bins, detrend=True)
+    assert float(linear["max"]) < TOL
+    vr = 0.5 + 0.3 * R**2
+    quad = angular_spread(make_state(body.X, v=vr[:, None] * e_r), body, c, bins, detrend=True)
+    want = []
+    for b in range(bins):
+        Rb, vb = R[k == b], vr[k == b]
+        dR = Rb - Rb.mean()
+        slope = np.sum(dR * vb) / np.sum(dR**2) if np.ptp(Rb) > 1e-9 else 0.0  # a bin of one radius
+        resid = vb - vb.mean() - slope * dR
+        want.append(np.sqrt(np.mean(resid**2)) / abs(np.mean(vb)))
+    np.testing.assert_allclose(quad["per_bin"], want, rtol=1e-9, atol=TOL)
+    swirl = np.zeros_like(e)
+    swirl[:, 0], swirl[:, 1] = -e[:, 1], e[:, 0]  # tangential: no v_r
+    tilted = (0.5 + 0.7 * R)[:, None] * e_r + 0.3 * e[:, :1] * e_r  # v_r depends on direction
+    out = angular_spread(make_state(body.X, v=tilted + swirl), body, c, bins, detrend=True)
+    assert float(out["max"]) > 0.05
 
 
 @pytest.mark.parametrize("dim", [2, 3])

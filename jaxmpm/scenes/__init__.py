@@ -12,6 +12,9 @@ from .gurney import GurneySlab as GurneySlab
 from .interface import Interface as Interface
 from .manufactured import Manufactured as Manufactured
 from .noh import Noh as Noh
+from .radial_blast import AbstractRadialBlast as AbstractRadialBlast
+from .radial_blast import BlastDisk as BlastDisk
+from .radial_blast import BlastSphere as BlastSphere
 from .riemann import Riemann as Riemann
 from .shock_tube import ShockTube as ShockTube
 from .vacuum_expansion import VacuumExpansion as VacuumExpansion
@@ -28,6 +31,8 @@ SCENES: dict[str, type[AbstractScene]] = {
         GasSlab,
         AxisAligned,
         Blast,
+        BlastDisk,
+        BlastSphere,
         ShockTube,
         Noh,
         Interface,
