@@ -411,6 +411,7 @@ def prepare(
     ordering: str = "usl",
     checkpoint: bool | int = False,
     viscosity: ArtificialViscosity | None = None,
+    volume_average: str | None = None,
 ) -> tuple[Model, Float[Array, ""] | ToEnd, int, SaveAt]:
     """Validate a run's arguments (before anything is traced) and build its ``Model``.
 
@@ -420,6 +421,7 @@ def prepare(
             ordering: as for ``simulate``.
             checkpoint: as for ``simulate``.
             viscosity: as for ``simulate``.
+            volume_average: as for ``simulate``.
 
     Returns:
         ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end`` (then
@@ -442,7 +444,9 @@ def prepare(
     elif dt is None or steps is None:
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
-    model = Model(scene, interpolator, transfer, artificial_cells, cfl_limit, ordering, viscosity)
+    model = Model(
+        scene, interpolator, transfer, artificial_cells, cfl_limit, ordering, viscosity, volume_average
+    )
     _memory.check_run(model, steps, saveat)
     return model, dt if isinstance(dt, ToEnd) else as_float(dt), steps, saveat
 
@@ -464,6 +468,7 @@ def simulate(
     ordering: str = "usl",
     checkpoint: bool | int = False,
     viscosity: ArtificialViscosity | None = None,
+    volume_average: str | None = None,
     throw: bool = True,
 ) -> Solution:
     """Run explicit steps in one compiled ``lax.scan``: ``steps`` steps of ``dt``, or to ``t_end``.
@@ -493,6 +498,8 @@ def simulate(
             ``False`` (default) stores every step's residuals (fastest for short runs). Results
             agree to round-off.
         viscosity: ``ArtificialViscosity()`` to damp the ringing behind shocks; ``None`` (default).
+        volume_average: ``None`` (default), ``"cell"`` or ``"node"``: the stress at the volume-averaged
+            ``F`` (J-bar, ``jaxmpm.Model``).
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
 
     Returns:
@@ -517,6 +524,7 @@ def simulate(
         ordering=ordering,
         checkpoint=checkpoint,
         viscosity=viscosity,
+        volume_average=volume_average,
     )
     sol = _run_scan_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
     return _finish(sol, dt, throw)

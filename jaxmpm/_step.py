@@ -39,6 +39,9 @@ from .viscosity import ArtificialViscosity
 
 ORDERINGS = ("usl", "musl")
 
+VOLUME_AVERAGES = ("cell", "node")
+"""The volume-averaged kinematics a run may take (``Model.volume_average``)."""
+
 PRODUCTS_TENSION_BOUND = 1e-3
 """A burnt particle whose products' pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (about
 ``-4e-3 p_CJ`` for gamma = 3) is a breakdown (``status.PRODUCTS_TENSION``): detonation products hold no
@@ -62,6 +65,17 @@ class Model(eqx.Module):
             nodal velocities. USL advances them with ``v_i + a_i dt``, which is unbounded where a
             node has just received a tiny mass but a finite force (a particle entering a new cell
             next to a traction or, for SPQ, any internal force through ``S_i'``).
+        volume_average: ``None`` (default), ``"cell"`` or ``"node"`` (static): volume-averaged
+            kinematics (J-bar). Before the stress, each particle's ``J = det F`` is replaced by a
+            local average ``J_bar``, and the stress is evaluated at ``F_bar = (J_bar / J)^(1/dim) F``
+            (the F-bar of de Souza Neto et al. 1996; for a gas, whose stress depends on ``J`` alone,
+            the pressure at ``J_bar``). ``"cell"`` averages over the particles whose centre lies in
+            the same grid cell, ``J_bar = sum V0 J / sum V0`` (a cell-wise constant field);
+            ``"node"`` projects ``J`` onto the nodes with the particles' weights, ``J_i = sum_p
+            w_ip V0_p J_p / sum_p w_ip V0_p``, and interpolates it back, ``J_bar_p = sum_i w_ip J_i``
+            (a continuous, piecewise linear field for linear shape functions). The state's ``F``
+            itself is not averaged; an energy equation takes the work of the averaged volume
+            change, both ``J`` of the step averaged with the same weights.
     """
 
     scene: AbstractScene
@@ -71,10 +85,16 @@ class Model(eqx.Module):
     cfl_limit: float | None = eqx.field(static=True, default=1.0)
     ordering: str = eqx.field(static=True, default="usl")
     viscosity: ArtificialViscosity | None = None
+    volume_average: str | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.ordering not in ORDERINGS:
             raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
+        if self.volume_average is not None and self.volume_average not in VOLUME_AVERAGES:
+            raise ValueError(
+                f"volume_average must be None or one of {', '.join(map(repr, VOLUME_AVERAGES))}, got "
+                f"{self.volume_average!r}"
+            )
 
 
 class Setup(eqx.Module):
@@ -526,15 +546,19 @@ def step(
             v_new = jnp.where(setup.walls, 0.0, v_new)
     x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
 
-    # 5. Kinematics, 6. constitutive update.
+    # 5. Kinematics, 6. constitutive update (at the volume-averaged F where the run asks for it).
     F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
+    F_old_s, F_new_s = F, F_new
+    if model.volume_average is not None:
+        F_old_s = _volume_averaged(model.volume_average, grid, body, stencil, x, F)
+        F_new_s = _volume_averaged(model.volume_average, grid, body, stencil, x, F_new)
     if setup.regions is None:
-        sigma = jax.vmap(mat.stress)(F_new)
+        sigma = jax.vmap(mat.stress)(F_new_s)
         if model.viscosity is not None:
-            sigma = sigma + model.viscosity.stress(mat, F, F_new, dt, scene.rho0, grid.h)
+            sigma = sigma + model.viscosity.stress(mat, F_old_s, F_new_s, dt, scene.rho0, grid.h)
         e_new, internal, tension = state.e, state.internal, None
     else:
-        sigma, e_new, internal, tension = _constitutive(model, setup, state, F_new, dt)
+        sigma, e_new, internal, tension = _constitutive(model, setup, state, F_new_s, dt, F_old_s)
     x_tr = state.x_traction
     if x_tr is not None:
         x_tr = x_tr + dt * contract("kj,kjd->kd", t_s, grid.gather(t_idx, v_new))
@@ -610,7 +634,28 @@ def step(
     )
 
 
-def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
+def _volume_averaged(kind, grid, body, stencil, x, F):
+    """``F_bar = (J_bar / J)^(1/dim) F`` with ``J_bar`` the cell-wise (``"cell"``) or nodal (``"node"``)
+    average of ``J`` (``Model.volume_average``)."""
+    J = det(F)
+    V0 = body.V0
+    if kind == "cell":
+        cell = jnp.floor((x - grid.x_min[None, :]) / grid.h).astype(jnp.int32)
+        ids = grid.flat_index([cell[:, a] for a in range(x.shape[1])])
+        vol = jax.ops.segment_sum(V0 * J, ids, num_segments=grid.n_nodes)
+        ref = jax.ops.segment_sum(V0, ids, num_segments=grid.n_nodes)
+        J_bar = vol[ids] / ref[ids]
+    else:
+        vol = grid.scatter(stencil.idx, stencil.w * (V0 * J)[:, None])
+        ref = grid.scatter(stencil.idx, stencil.w * V0[:, None])
+        filled = ref > 0
+        J_i = jnp.where(filled, vol / jnp.where(filled, ref, 1.0), 0.0)
+        J_bar = contract("nk,nk->n", stencil.w, grid.gather(stencil.idx, J_i))
+    ratio = J_bar / J
+    return F * jnp.sign(ratio)[:, None, None] * jnp.abs(ratio)[:, None, None] ** (1.0 / x.shape[1])
+
+
+def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all=None):
     """Stress, energy and internal variables after a step, each region by its own material.
 
     A material of ``F`` alone gives ``sigma(F_new)`` (plus the viscous stress). An ``AbstractEOS``
@@ -624,7 +669,7 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
 
     Returns ``(sigma, e, internal, tension)``: ``tension`` marks the burnt particles of a programmed
     burn whose products' own pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (``None`` without
-    a burn).
+    a burn). ``F_old_all`` is the state's ``F`` unless given (the volume-averaged one).
     """
     body, h = setup.body, setup.grid.h
     n, dim = body.X.shape
@@ -633,7 +678,7 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt):
     sig, energies, internal = [], [], None if state.internal is None else dict(state.internal)
     tensions = []
     for g in groups:
-        F_old, F_g = _take(state.F, g.index), _take(F_new, g.index)
+        F_old, F_g = _take(state.F if F_old_all is None else F_old_all, g.index), _take(F_new, g.index)
         mat = g.material
         if not isinstance(mat, AbstractEOS):
             s_g = jax.vmap(mat.stress)(F_g)
