@@ -489,7 +489,12 @@ def radial_profile_convergence(
     weighted by their masses, the cells by their volumes.
 
     Args:
-        P0, gamma, p_atm, rho0, radius, dim: the problem, as for ``gas_radial``.
+        P0: as for ``gas_radial``.
+        gamma: as for ``gas_radial``.
+        p_atm: as for ``gas_radial``.
+        rho0: as for ``gas_radial``.
+        radius: as for ``gas_radial``.
+        dim: as for ``gas_radial``.
         ts: the times (a time at which every resolution agrees exactly, such as 0, has no order).
         cells: three or more resolutions, coarse to fine, each an integer multiple of the last.
         **kwargs: passed to ``gas_radial`` (``viscosity``, its coefficients, tolerances).
