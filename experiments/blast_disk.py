@@ -1,0 +1,87 @@
+"""How far the 2D disk charge runs, and how smooth it stays, against its 1D radial reference.
+
+Gas at 10 bar and 1.5 kg/m^3 against 1 bar, a disk of radius 0.5 m as a quarter with symmetry planes,
+32 cells across the radius (2 particles per cell and axis unless told), `cfl = 0.3`, to two sound
+transits of the radius. For each configuration: the status (and when it broke down, as a fraction of
+two transits), and at the last good state the radial-velocity error (L1, relative) against the
+reference at the particles' reference radii, the outer ring's radial position error, the angular
+spread of the radial velocity (detrended, bins of one cell), the largest spurious rotation and the
+folded domains. About 10 s a configuration on 2 cores.
+
+    python experiments/blast_disk.py                  # the table of docs/multid.md
+    python experiments/blast_disk.py cpdi flip node   # one configuration: interpolator transfer [options]
+
+Options: `musl`, `visc` (artificial viscosity), `cell` or `node` (volume averaging), `ppc1`, `ratio=R`,
+`cells=N`.
+"""
+
+import sys
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import numpy as np  # noqa: E402
+
+import jaxmpm as jm  # noqa: E402
+from jaxmpm import metrics  # noqa: E402
+
+CONFIGS = [
+    ("cpdi", "flip", ()),
+    ("cpdi", "flip", ("ppc1",)),
+    ("cpdi", "flip", ("musl",)),
+    ("cpdi", "flip", ("node",)),
+    ("cpdi", "flip", ("cell", "visc")),
+    ("cpdi", "flip", ("visc",)),
+    ("cpdi", "apic", ()),
+    ("mpq", "flip", ()),
+    ("mpq", "apic", ("musl",)),
+]
+
+
+def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
+    kv = dict(o.split("=") for o in opts if "=" in o)
+    ratio, cells = float(kv.get("ratio", 10.0)), int(kv.get("cells", 32))
+    ppc = 1 if "ppc1" in opts else 2
+    scene = jm.BlastDisk(P0=ratio * 1e5, cells=cells, ppc=ppc, pad=int((4.5 if ratio > 50 else 2.5) * cells))
+    T = 2.0 * float(scene.transit_time)
+    kwargs = dict(
+        transfer=jm.TRANSFERS[transfer](),
+        ordering="musl" if "musl" in opts else "usl",
+        viscosity=jm.ArtificialViscosity() if "visc" in opts else None,
+        volume_average=next((o for o in opts if o in ("cell", "node")), None),
+    )
+    sol = jm.simulate(
+        scene, jm.INTERPOLATORS[interp](), t_end=T, cfl=0.3, max_steps=20000, throw=False, **kwargs
+    )
+    st, body = sol.state, sol.body
+    ref = scene.reference(np.array([float(st.t)]))
+    R = np.asarray(metrics.reference_radius(body, scene.centre))
+    at = ref.at(R)
+    v_ref = np.asarray(at["v"][0])
+    v_r = np.asarray(metrics.radial_velocity(st, body, scene.centre))
+    r = np.linalg.norm(np.asarray(st.x), axis=1)
+    ring = R > float(scene.radius) - 0.6 * float(scene.h)
+    spread = metrics.angular_spread(st, body, scene.centre, bins=cells, detrend=True)
+    rotation = metrics.spurious_rotation(st, body)
+    folded = int(metrics.folded_domains(metrics.domain_corners(st, body), body))
+    status = int(st.status)
+    what = (
+        "ran through"
+        if status == 0
+        else f"broke down at {float(st.t) / T:.2f}: " + ", ".join(jm.status.describe(status))
+    )
+    return (
+        f"{interp} {transfer} {' '.join(opts) or '-'}: {what}; v_r L1 "
+        f"{np.sum(np.abs(v_r - v_ref)) / np.sum(np.abs(v_ref)):.3f}, outer ring radius "
+        f"{np.max(np.abs(r[ring] / np.asarray(at['r'][0])[ring] - 1.0)):.3f}, spread "
+        f"{float(spread['max']):.3f}, rotation {float(rotation['max']):.2f} rad, folded {folded}"
+    )
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1:
+        print(run(sys.argv[1], sys.argv[2], tuple(sys.argv[3:])))
+    else:
+        for interp, transfer, opts in CONFIGS:
+            print(run(interp, transfer, opts), flush=True)
