@@ -168,8 +168,14 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
     Returns:
         ``v``, ``F``, ``sigma``, ``J`` and ``X``, padded to 3 components (``F`` and ``sigma`` to 3x3),
         ``rho`` (current density), ``p`` (``-tr(sigma) / dim``), ``region`` (0 for a body of one
-        region), and where the run has them ``e`` and ``internal.<variable>``.
+        region), the smoothness measures ``rotation`` (the angle of ``F``'s polar rotation, radians:
+        ``jaxmpm.metrics.rotation_angle``) and ``corner_jacobian_min`` (the smallest Jacobian of the
+        particle's domain at its corners, ``<= 0`` where it is folded or inverted:
+        ``jaxmpm.metrics.corner_jacobians``), and where the run has them ``e`` and
+        ``internal.<variable>``.
     """
+    from .metrics import corner_jacobians, domain_corners, rotation_angle
+
     J = np.asarray(det(state.F))
     dim = state.F.shape[-1]
     out = {
@@ -181,6 +187,10 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
         "rho": np.asarray(body.m) / (np.asarray(body.V0) * J),
         "p": -np.trace(np.asarray(state.sigma), axis1=1, axis2=2) / dim,
         "region": np.zeros(body.n) if body.region is None else np.asarray(body.region, dtype=float),
+        "rotation": np.asarray(rotation_angle(state)),
+        "corner_jacobian_min": np.asarray(
+            jnp.min(corner_jacobians(domain_corners(state, body), body), axis=1)
+        ),
     }
     if state.e is not None:
         out["e"] = np.asarray(state.e)

@@ -427,3 +427,15 @@ def test_quarter_blast_is_symmetric_about_the_diagonal():
     assert int(folded_domains(domain_corners(state, body), body)) == 0
     rot = spurious_rotation(state, body)
     assert float(rot["max"]) == pytest.approx(np.abs(angle).max(), rel=TOL)
+
+
+def test_the_vtk_particle_fields_carry_the_rotation_and_the_smallest_corner_jacobian():
+    """A rigid rotation by 0.3 rad: every particle's rotation is 0.3 and its corners' Jacobian 1; a
+    particle whose F is inverted has a negative one."""
+    body = box([2, 2], ppc=2)
+    F = np.broadcast_to(rot2(0.3), (body.n, 2, 2)).copy()
+    F[5] = np.diag([1.0, -0.5])
+    fields = jm.vtk.particle_fields(make_state(body.X, F=F), body)
+    np.testing.assert_allclose(np.delete(fields["rotation"], 5), 0.3, rtol=1e-14)
+    np.testing.assert_allclose(np.delete(fields["corner_jacobian_min"], 5), 1.0, rtol=1e-14)
+    assert fields["corner_jacobian_min"][5] == pytest.approx(-0.5, rel=1e-14)
