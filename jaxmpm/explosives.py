@@ -484,24 +484,19 @@ def _as_points(x: object) -> Float[Array, "k dim"]:
     return p
 
 
-def _as_planes(x: object) -> Float[Array, "m dim1"] | None:
-    """Plane detonators as an ``(m, dim + 1)`` array of rows ``(n, c)``, the plane ``n . X = c`` (one
-    plane may be given as a vector); ``None`` for none."""
-    if x is None:
-        return None
-    check_real("planes", x)
-    p = jnp.asarray(x, dtype=jnp.result_type(float))
-    return p[None, :] if p.ndim == 1 else p
+def _as_rows(name: str):
+    """A converter of detonator rows (``planes``: ``(n, c)``, the plane ``n . X = c``; ``lines``: ``(a,
+    d)``, the line through ``a`` along ``d``) to an ``(m, k)`` array (one row may be given as a
+    vector); ``None`` for none."""
 
+    def convert(x: object) -> Float[Array, "m k"] | None:
+        if x is None:
+            return None
+        check_real(name, x)
+        p = jnp.asarray(x, dtype=jnp.result_type(float))
+        return p[None, :] if p.ndim == 1 else p
 
-def _as_lines(x: object) -> Float[Array, "m dim2"] | None:
-    """Line detonators as an ``(m, 2 dim)`` array of rows ``(a, d)``, the line through ``a`` along
-    ``d`` (one line may be given as a vector); ``None`` for none."""
-    if x is None:
-        return None
-    check_real("lines", x)
-    p = jnp.asarray(x, dtype=jnp.result_type(float))
-    return p[None, :] if p.ndim == 1 else p
+    return convert
 
 
 def _ramp(x, smooth: bool):
@@ -565,8 +560,8 @@ class ProgrammedBurn(AbstractEOS):
     t_d: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
     burn: str = eqx.field(static=True, default="time")
     smooth: bool = eqx.field(static=True, default=False)
-    planes: Float[Array, "m dim1"] | None = eqx.field(converter=_as_planes, default=None)
-    lines: Float[Array, "m dim2"] | None = eqx.field(converter=_as_lines, default=None)
+    planes: Float[Array, "m dim1"] | None = eqx.field(converter=_as_rows("planes"), default=None)
+    lines: Float[Array, "m dim2"] | None = eqx.field(converter=_as_rows("lines"), default=None)
 
     def __check_init__(self):
         if self.reactant is not None and not isinstance(self.reactant, AbstractEOS):

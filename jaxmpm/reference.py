@@ -202,14 +202,19 @@ def reference_convergence(scene, ts, cells=(100, 200, 400, 800), **kwargs) -> li
         One row per resolution: ``cells``, ``x_free_max_diff`` and (between the first and the last)
         ``order``.
     """
-    sols = [gas_slab(scene, ts, n, **kwargs) for n in cells]
-    finest = sols[-1].x_free
-    rows = []
-    for n, s in zip(cells, sols):
-        rows.append(dict(cells=n, x_free_max_diff=float(jnp.max(jnp.abs(s.x_free - finest)))))
-    for i in range(len(sols) - 2):
-        d1 = jnp.max(jnp.abs(sols[i].x_free - sols[i + 1].x_free))
-        d2 = jnp.max(jnp.abs(sols[i + 1].x_free - sols[i + 2].x_free))
+    return _surface_convergence(cells, [gas_slab(scene, ts, n, **kwargs).x_free for n in cells], "x_free")
+
+
+def _surface_convergence(cells, surfaces, name: str) -> list[dict]:
+    """Rows of ``cells``, ``<name>_max_diff`` against the finest surface trajectory, and the observed
+    order between each three successive resolutions (Richardson)."""
+    finest = surfaces[-1]
+    rows = [
+        {"cells": n, f"{name}_max_diff": float(jnp.max(jnp.abs(s - finest)))} for n, s in zip(cells, surfaces)
+    ]
+    for i in range(len(surfaces) - 2):
+        d1 = jnp.max(jnp.abs(surfaces[i] - surfaces[i + 1]))
+        d2 = jnp.max(jnp.abs(surfaces[i + 1] - surfaces[i + 2]))
         rows[i + 1]["order"] = float(jnp.log2(d1 / d2))
     return rows
 
@@ -463,16 +468,7 @@ def radial_convergence(ts, cells=(100, 200, 400, 800), **kwargs) -> list[dict]:
         One row per resolution: ``cells``, ``r_free_max_diff`` and (between the first and the last)
         ``order``.
     """
-    sols = [gas_radial(ts=ts, cells=n, **kwargs) for n in cells]
-    finest = sols[-1].r_free
-    rows = []
-    for n, s in zip(cells, sols):
-        rows.append(dict(cells=n, r_free_max_diff=float(jnp.max(jnp.abs(s.r_free - finest)))))
-    for i in range(len(sols) - 2):
-        d1 = jnp.max(jnp.abs(sols[i].r_free - sols[i + 1].r_free))
-        d2 = jnp.max(jnp.abs(sols[i + 1].r_free - sols[i + 2].r_free))
-        rows[i + 1]["order"] = float(jnp.log2(d1 / d2))
-    return rows
+    return _surface_convergence(cells, [gas_radial(ts=ts, cells=n, **kwargs).r_free for n in cells], "r_free")
 
 
 def radial_profile_convergence(
