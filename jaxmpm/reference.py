@@ -264,7 +264,10 @@ class RadialSolution(eqx.Module):
         R = jnp.asarray(R, dtype=self.R.dtype)
 
         def interp(xp, fp):
-            return jax.vmap(lambda f: jnp.interp(R, xp, f))(fp)
+            # (1 - t) f_i + t f_{i+1}: exactly the nodal value at a node, the last one included
+            i = jnp.clip(jnp.searchsorted(xp, R, side="right") - 1, 0, xp.shape[0] - 2)
+            t = jnp.clip((R - xp[i]) / (xp[i + 1] - xp[i]), 0.0, 1.0)
+            return (1.0 - t)[None] * fp[:, i] + t[None] * fp[:, i + 1]
 
         return dict(
             r=interp(self.R_nodes, self.r),

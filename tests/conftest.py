@@ -3,12 +3,15 @@ import os
 # The suite compiles several hundred small programs and runs each for a moment, so compiling is most
 # of its time. XLA's CPU backend at optimisation level 0, with its classic (non-MLIR) fusion emitters,
 # compiles a reverse-mode run about 2.5 times faster (1.3 s -> 0.5 s measured) and halves the suite.
+# Each program is compiled as one LLVM module (no split for parallel codegen: the two xdist workers
+# already keep both cores busy): XLA compile time of the suite 309 s -> 242 s summed.
 os.environ["XLA_FLAGS"] = " ".join(
     (
         os.environ.get("XLA_FLAGS", ""),
         "--xla_backend_optimization_level=0",
         "--xla_llvm_disable_expensive_passes=true",
         "--xla_cpu_use_fusion_emitters=false",
+        "--xla_cpu_parallel_codegen_split_count=1",
     )
 ).strip()
 
