@@ -8,12 +8,23 @@ from collections.abc import Sequence
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 from . import _memory
 from . import status as st_bits
 from ._checks import check_int, check_positive, is_concrete
-from ._step import Model, Setup, check_structure, initial_state, setup, stable_dt, step
+from ._step import (
+    Model,
+    Setup,
+    check_devices,
+    check_structure,
+    initial_state,
+    setup,
+    shard_particles,
+    stable_dt,
+    step,
+)
 from ._util import as_float, det
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import Body, State
@@ -152,6 +163,31 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         check_positive("cfl_limit", cfl_limit)
 
 
+def as_devices(devices) -> tuple[jax.Device, ...] | None:
+    """The ``devices`` argument of a run as a tuple of devices (``None`` stays ``None``).
+
+    Args:
+        devices: ``None``, a count ``k`` (the first ``k`` local devices), or a sequence of devices.
+
+    Returns:
+        ``None`` or a tuple of distinct devices.
+
+    Raises:
+        ValueError: anything else, or more devices than there are.
+    """
+    if devices is None:
+        return None
+    if isinstance(devices, int | np.integer) and not isinstance(devices, bool):
+        local = jax.local_devices()
+        if not 1 <= devices <= len(local):
+            raise ValueError(
+                f"devices must be a count from 1 to {len(local)} (the local devices), or a sequence of "
+                f"devices, got {devices}"
+            )
+        return tuple(local[: int(devices)])
+    return check_devices(devices)
+
+
 def save_fields(state: State, fields: Sequence[str]) -> dict[str, Array]:
     """The named fields of ``state`` that the run has (``C``, ``corners``, ``x_traction``, ``e`` and
     ``internal`` may be ``None`` and are then left out; ``internal`` gives one entry
@@ -225,9 +261,14 @@ def advance(
         ``(state, saved)``, ``saved`` a dict of fields with a leading axis ``steps // k``, or ``None``.
     """
 
+    n_particles = state.x.shape[0]
+
     def one(state, _):
+        return shard_particles(model, taken(state), n_particles), None
+
+    def taken(state):
         if not isinstance(dt, ToEnd):
-            return step(model, setup, state, dt, limit), None
+            return step(model, setup, state, dt, limit)
         remaining = dt.t_end - state.t
         active = remaining > 0
 
@@ -242,7 +283,7 @@ def advance(
         # stable step included, so a generous max_steps costs little. (Under vmap the branches become
         # a select and both run.)
         go = active & (state.status == 0)
-        return jax.lax.cond(go, take, lambda st: st, state), None
+        return jax.lax.cond(go, take, lambda st: st, state)
 
     def scan(state, n):
         return jax.lax.scan(one, state, None, length=n)[0] if n > 0 else state
@@ -313,7 +354,10 @@ def run_scan(
         The ``Solution``, its status recording any failure (nothing is raised).
     """
     s = setup(model)
-    state0 = initial_state(model, s)
+    n_particles = s.body.X.shape[0]
+    if model.devices is not None:
+        s = eqx.tree_at(lambda z: z.body, s, shard_particles(model, s.body, n_particles))
+    state0 = shard_particles(model, initial_state(model, s), n_particles)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
     if isinstance(dt, ToEnd):
         state = finish_to_end(state, dt)
@@ -412,6 +456,7 @@ def prepare(
     checkpoint: bool | int = False,
     viscosity: ArtificialViscosity | None = None,
     volume_average: str | None = None,
+    devices=None,
 ) -> tuple[Model, Float[Array, ""] | ToEnd, int, SaveAt]:
     """Validate a run's arguments (before anything is traced) and build its ``Model``.
 
@@ -422,6 +467,7 @@ def prepare(
             checkpoint: as for ``simulate``.
             viscosity: as for ``simulate``.
             volume_average: as for ``simulate``.
+            devices: as for ``simulate``.
 
     Returns:
         ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end`` (then
@@ -445,7 +491,15 @@ def prepare(
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
     model = Model(
-        scene, interpolator, transfer, artificial_cells, cfl_limit, ordering, viscosity, volume_average
+        scene,
+        interpolator,
+        transfer,
+        artificial_cells,
+        cfl_limit,
+        ordering,
+        viscosity,
+        volume_average,
+        as_devices(devices),
     )
     _memory.check_run(model, steps, saveat)
     return model, dt if isinstance(dt, ToEnd) else as_float(dt), steps, saveat
@@ -469,6 +523,7 @@ def simulate(
     checkpoint: bool | int = False,
     viscosity: ArtificialViscosity | None = None,
     volume_average: str | None = None,
+    devices=None,
     throw: bool = True,
 ) -> Solution:
     """Run explicit steps in one compiled ``lax.scan``: ``steps`` steps of ``dt``, or to ``t_end``.
@@ -525,6 +580,7 @@ def simulate(
         checkpoint=checkpoint,
         viscosity=viscosity,
         volume_average=volume_average,
+        devices=devices,
     )
     sol = _run_scan_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
     return _finish(sol, dt, throw)

@@ -63,7 +63,7 @@ import numpy as np
 from . import status as st_bits
 from ._checks import check_int
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
-from ._step import initial_state, setup
+from ._step import initial_state, setup, shard_particles
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import State
 from .scenes import SCENES, AbstractScene
@@ -128,12 +128,18 @@ class Interrupted(KeyboardInterrupt):
 @eqx.filter_jit
 def _start(model):
     prepared = setup(model)
-    return initial_state(model, prepared), prepared.body
+    state = initial_state(model, prepared)
+    return shard_particles(model, state, state.x.shape[0]), prepared.body
 
 
 @eqx.filter_jit
 def _chunk(model, dt, state, limit, n: int, saveat: SaveAt):
     return advance(model, setup(model), state, dt, n, saveat, None, limit)
+
+
+@eqx.filter_jit
+def _lay_out(model, state):
+    return shard_particles(model, state, state.x.shape[0])
 
 
 def show_progress(progress: bool | None) -> bool:
@@ -491,6 +497,7 @@ def run_timed(
     cfl_limit: float | None = 1.0,
     ordering: str = "usl",
     viscosity: ArtificialViscosity | None = None,
+    devices=None,
     out: str | os.PathLike | None = None,
     checkpoint_every: int | None = None,
     progress: bool | None = None,
@@ -510,6 +517,8 @@ def run_timed(
         cfl_limit: as for ``simulate``.
         ordering: as for ``simulate``.
         viscosity: as for ``simulate`` (saved with the run).
+        devices: as for ``simulate``; the file records their count, and ``resume`` continues on as
+            many local devices (bit for bit on the same layout).
         chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end).
         out: a ``.npz`` file to write the run to (at the end, at checkpoints, on breakdown and on
             Ctrl-C). Its folder must exist and be writable.
@@ -549,6 +558,7 @@ def run_timed(
         cfl_limit=cfl_limit,
         ordering=ordering,
         viscosity=viscosity,
+        devices=devices,
     )
     if saveat.every is not None and chunk % saveat.every:
         raise ValueError(f"chunk must be a multiple of saveat.every, got chunk={chunk}, every={saveat.every}")
@@ -571,6 +581,7 @@ def run_timed(
         saveat=dict(every=saveat.every, fields=list(saveat.fields)),
         checkpoint_every=checkpoint_every,
         viscosity=None if viscosity is None else [float(viscosity.c_quad), float(viscosity.c_lin)],
+        devices=None if model.devices is None else len(model.devices),
     )
     state, body = _start(model)
     history = ts = None
@@ -870,6 +881,7 @@ def _settings(path: pathlib.Path, meta: dict):
             cfl_limit=meta["cfl_limit"],
             ordering=meta["ordering"],
             viscosity=_viscosity_from(meta.get("viscosity")),
+            devices=meta.get("devices"),
         )
     except (TypeError, ValueError) as e:
         raise ValueError(f"{path}: its meta does not describe a run: {e}") from None
@@ -947,6 +959,8 @@ def _load(path: pathlib.Path):
             a = _check_array(path, key, arrays, tuple(template.shape), template.dtype)
             fields[name] = jnp.asarray(a, dtype=template.dtype)
     state = State(**fields)
+    if model.devices is not None:  # laid out as the chunks' states are, so that they compile once
+        state = _lay_out(model, state)
     if int(state.step) != meta["step"]:
         raise ValueError(f"{path}: state.step is {int(state.step)} but its meta says step {meta['step']}")
     if "status" in meta and meta["status"] != int(state.status):
@@ -993,9 +1007,10 @@ def resume(
     """Continue a run saved by ``run`` to its target step count, checkpointing as it was set up to.
 
     A resumed run equals the uninterrupted one bit for bit: the same chunk boundaries, the same
-    compiled chunk, the state read back exactly. A run that had broken down is not continued: its
-    failure is raised again (or returned with ``throw=False``). The file is checked first, as by
-    ``load``.
+    compiled chunk, the state read back exactly. A run spread over several devices (``devices``)
+    continues on as many of this process's devices, bit for bit too. A run that had broken down is
+    not continued: its failure is raised again (or returned with ``throw=False``). The file is
+    checked first, as by ``load``.
 
     Args:
         path: the saved run.

@@ -1,5 +1,8 @@
 """Failure bits recorded in the loop state (a bitmask, as jax-md's neighbour lists do)."""
 
+import functools
+import operator
+
 import jax
 import jax.numpy as jnp
 
@@ -38,7 +41,7 @@ def describe(status: int) -> list[str]:
     return [text for bit, text in QUANTITY.items() if status & bit]
 
 
-def combine(checks):
+def combine(checks, sharded: bool = False):
     """Fold ``[(bit, mask (n,)), ...]`` into ``(status, first particle of the lowest set bit)``.
 
     One pass builds each particle's bits and one reduction ORs them; the particle is searched for
@@ -46,16 +49,28 @@ def combine(checks):
 
     Args:
         checks: pairs of a status bit and a boolean per particle (where the check failed).
+        sharded: the particles are sharded over several devices. Cross-device reductions are then
+            ones every backend's collectives have (max and min): each bit by a max over the
+            particles, the particle by a min over the indices that fail. Same results.
 
     Returns:
         ``(status, particle)``, ``particle`` -1 when no bit is set.
     """
+    if not checks:
+        return jnp.zeros((), dtype=jnp.int32), jnp.full((), -1, dtype=jnp.int32)
+    if sharded:
+        status = sum(jnp.max(jnp.where(mask, jnp.int32(bit), jnp.int32(0))) for bit, mask in _by_bit(checks))
+        lowest = status & -status
+        n = checks[0][1].shape[0]
+        hit = functools.reduce(
+            operator.or_, (mask & ((lowest & bit) != 0) for bit, mask in checks)
+        )
+        first = jnp.min(jnp.where(hit, jnp.arange(n, dtype=jnp.int32), jnp.int32(n)))
+        return status, jnp.where(status != 0, first, jnp.int32(-1))
     per = None
     for bit, mask in checks:
         term = jnp.where(mask, jnp.int32(bit), jnp.int32(0))
         per = term if per is None else per | term
-    if per is None:
-        return jnp.zeros((), dtype=jnp.int32), jnp.full((), -1, dtype=jnp.int32)
     status = jax.lax.reduce(per, jnp.int32(0), jax.lax.bitwise_or, (0,))
     lowest = status & -status
 
@@ -64,3 +79,11 @@ def combine(checks):
 
     particle = jax.lax.cond(status != 0, first, lambda per: jnp.full((), -1, dtype=jnp.int32), per)
     return status, particle
+
+
+def _by_bit(checks):
+    """``checks`` with the masks of the same bit ORed together: one ``(bit, mask)`` per bit."""
+    merged = {}
+    for bit, mask in checks:
+        merged[bit] = mask if bit not in merged else merged[bit] | mask
+    return merged.items()
