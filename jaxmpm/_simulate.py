@@ -25,7 +25,7 @@ from ._step import (
     stable_dt,
     step,
 )
-from ._util import as_float, det
+from ._util import as_float, det, host
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
@@ -167,7 +167,8 @@ def as_devices(devices) -> tuple[jax.Device, ...] | None:
     """The ``devices`` argument of a run as a tuple of devices (``None`` stays ``None``).
 
     Args:
-        devices: ``None``, a count ``k`` (the first ``k`` local devices), or a sequence of devices.
+        devices: ``None``, a count ``k`` (the first ``k`` of ``jax.devices()``: with several
+            processes, of all of them), or a sequence of devices.
 
     Returns:
         ``None`` or a tuple of distinct devices.
@@ -178,13 +179,13 @@ def as_devices(devices) -> tuple[jax.Device, ...] | None:
     if devices is None:
         return None
     if isinstance(devices, int | np.integer) and not isinstance(devices, bool):
-        local = jax.local_devices()
-        if not 1 <= devices <= len(local):
+        every = jax.devices()
+        if not 1 <= devices <= len(every):
             raise ValueError(
-                f"devices must be a count from 1 to {len(local)} (the local devices), or a sequence of "
+                f"devices must be a count from 1 to {len(every)} (jax.devices()), or a sequence of "
                 f"devices, got {devices}"
             )
-        return tuple(local[: int(devices)])
+        return tuple(every[: int(devices)])
     return check_devices(devices)
 
 
@@ -377,8 +378,8 @@ _run_scan_jit = eqx.filter_jit(run_scan)
 
 def _energy(sol: Solution, p: int) -> str:
     """``, region k, e = ...`` for a particle of a body of regions ("" otherwise)."""
-    out = "" if sol.body.region is None else f", region {int(sol.body.region[p])}"
-    return out + ("" if sol.state.e is None else f", e = {float(sol.state.e[p]):.6g}")
+    out = "" if sol.body.region is None else f", region {int(host(sol.body.region)[p])}"
+    return out + ("" if sol.state.e is None else f", e = {float(host(sol.state.e)[p]):.6g}")
 
 
 def failure_message(sol: Solution, dt: float | None) -> str:
@@ -400,10 +401,11 @@ def failure_message(sol: Solution, dt: float | None) -> str:
     if p < 0:
         who = "the run"
     else:
+        # host(...): the whole array on this process, also from several processes' devices
+        X, x, F = host(sol.body.X)[p], host(st.x)[p], host(st.F)[p]
         if st.x.shape[1] == 1:
-            X = float(sol.body.X[p, 0])
             who = (
-                f"particle {p} (X = {X:.6g}, x = {float(st.x[p, 0]):.6g}, F = {float(st.F[p, 0, 0]):.6g}"
+                f"particle {p} (X = {float(X[0]):.6g}, x = {float(x[0]):.6g}, F = {float(F[0, 0]):.6g}"
                 f"{_energy(sol, p)} at step {last})"
             )
         else:  # 2D, 3D: vectors, and J = det F
@@ -411,9 +413,9 @@ def failure_message(sol: Solution, dt: float | None) -> str:
             def vec(a):
                 return "(" + ", ".join(f"{float(c):.6g}" for c in a) + ")"
 
-            J = float(det(st.F[p]))
+            J = float(det(jnp.asarray(F)))
             who = (
-                f"particle {p} (X = {vec(sol.body.X[p])}, x = {vec(st.x[p])}, J = det F = {J:.6g}"
+                f"particle {p} (X = {vec(X)}, x = {vec(x)}, J = det F = {J:.6g}"
                 f"{_energy(sol, p)} at step {last})"
             )
     return (

@@ -174,6 +174,31 @@ def shard_particles(model: Model, tree, n: int):
     return jax.tree.map(lay, tree)
 
 
+def place_particles(model: Model, tree, n: int):
+    """Host arrays put on ``model.devices`` laid out as ``shard_particles`` lays them out (with
+    several processes, each process places its own part).
+
+    Args:
+        model: the run (``model.devices`` not ``None``).
+        tree: a pytree of NumPy arrays, the same on every process.
+        n: the number of particles.
+
+    Returns:
+        ``tree`` as JAX arrays on the devices.
+    """
+    mesh = jax.sharding.Mesh(np.asarray(model.devices, dtype=object), ("particles",))
+
+    def put(a):
+        spec = (
+            jax.sharding.PartitionSpec("particles")
+            if a.ndim and a.shape[0] == n
+            else jax.sharding.PartitionSpec()
+        )
+        return jax.make_array_from_callback(a.shape, jax.sharding.NamedSharding(mesh, spec), lambda i: a[i])
+
+    return jax.tree.map(put, tree)
+
+
 def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
     """Which faces carry a traction, read from the structure of ``scene.traction``.
 

@@ -5,6 +5,8 @@ import operator
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax.experimental import multihost_utils
 from jaxtyping import Array, Float
 
 from ._checks import check_real
@@ -172,3 +174,18 @@ def corner_signs(dim: int):
     c = np.arange(2**dim)[:, None]
     bits = (c >> (dim - 1 - np.arange(dim))[None, :]) & 1
     return (2 * bits - 1).astype(np.float64)
+
+
+def host(a) -> np.ndarray:
+    """``a`` as a NumPy array on this process, also when it is spread over several processes' devices
+    (then gathered from all of them: a collective, which every process must call at the same point).
+
+    Args:
+        a: an array.
+
+    Returns:
+        The whole array.
+    """
+    if isinstance(a, jax.Array) and not a.is_fully_addressable:
+        return np.asarray(multihost_utils.process_allgather(a, tiled=True))
+    return np.asarray(a)

@@ -11,7 +11,8 @@ same call uses one CPU, four forced host devices
 Several hosts: start each process with ``jax.distributed.initialize()`` (coordinator address, process
 count and id from the cluster's environment, e.g. SLURM), then call ``ensemble(..., devices=
 jax.devices())``: the mesh then spans every host's devices and each process computes its own shard.
-Gather results with ``jax.experimental.multihost_utils.process_allgather``. Nothing else changes.
+Every process gets every member's status (``Ensemble.status``, ``failures``); gather the states with
+``jax.experimental.multihost_utils.process_allgather``.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
@@ -176,6 +178,12 @@ def ensemble(
 
     sol = _run_batch(model, dt, batch, steps, saveat, block)
     sol = jax.tree_util.tree_map(lambda a: a[:n], sol)
+    if not sol.state.status.is_fully_addressable:
+        # Several processes: each holds its own members' states; every process gets every member's
+        # status, failing step and particle (the rest: multihost_utils.process_allgather).
+        where = lambda z: (z.state.status, z.state.fail_step, z.state.fail_particle)  # noqa: E731
+        gathered = multihost_utils.process_allgather(where(sol), tiled=True)
+        sol = eqx.tree_at(where, sol, tuple(jnp.asarray(a) for a in gathered))
     return Ensemble(
         params={name: a for name, a in arrays.items()},
         solution=sol,

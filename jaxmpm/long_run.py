@@ -59,11 +59,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import multihost_utils
 
 from . import status as st_bits
 from ._checks import check_int
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
-from ._step import initial_state, setup, shard_particles
+from ._step import initial_state, place_particles, setup, shard_particles
+from ._util import host
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import State
 from .scenes import SCENES, AbstractScene
@@ -135,11 +137,6 @@ def _start(model):
 @eqx.filter_jit
 def _chunk(model, dt, state, limit, n: int, saveat: SaveAt):
     return advance(model, setup(model), state, dt, n, saveat, None, limit)
-
-
-@eqx.filter_jit
-def _lay_out(model, state):
-    return shard_particles(model, state, state.x.shape[0])
 
 
 def show_progress(progress: bool | None) -> bool:
@@ -280,16 +277,21 @@ class _Recorder:
             value = getattr(state, name)
             if isinstance(value, dict):  # internal variables: one array per variable
                 for k, v in value.items():
-                    arrays[f"state.{name}.{k}"] = np.asarray(v)
+                    arrays[f"state.{name}.{k}"] = host(v)
             elif value is not None:
-                arrays[f"state.{name}"] = np.asarray(value)
-        arrays["body.X"] = np.asarray(self.body.X)
-        arrays["body.boundary"] = np.asarray(self.body.boundary)
+                arrays[f"state.{name}"] = host(value)
+        arrays["body.X"] = host(self.body.X)
+        arrays["body.boundary"] = host(self.body.boundary)
         if self.history is not None:
             arrays["history.ts"] = np.asarray(self.ts, dtype=np.float64)
             for name, items in self.history.items():
                 arrays[f"history.{name}"] = np.stack(items)
-        _write_npz(path, arrays)
+        # With several processes (a run over their devices), the first writes the whole run and the
+        # others wait for it, so that every process then reads the same file.
+        if jax.process_index() == 0:
+            _write_npz(path, arrays)
+        if jax.process_count() > 1:
+            multihost_utils.sync_global_devices(f"jaxmpm: saved {path} at step {step}")
 
 
 class InterruptLatch:
@@ -417,7 +419,7 @@ def _drive(
         while done < steps and int(state.status) == 0:
             t0 = time.perf_counter()
             new_state, saved = wait(compiled(model, dt_arr, state, limit, chunk, saveat))
-            saved = None if saved is None else jax.device_get(saved)
+            saved = None if saved is None else jax.tree.map(host, saved)
             with _DeferInterrupt() as held_back:  # record the chunk (and save it) whole, or not at all
                 state = new_state
                 before, done = done, int(state.step)
@@ -518,7 +520,8 @@ def run_timed(
         ordering: as for ``simulate``.
         viscosity: as for ``simulate`` (saved with the run).
         devices: as for ``simulate``; the file records their count, and ``resume`` continues on as
-            many local devices (bit for bit on the same layout).
+            many devices (bit for bit on the same layout). With several processes, the first
+            process writes ``out`` (the whole run) and the others wait for it.
         chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end).
         out: a ``.npz`` file to write the run to (at the end, at checkpoints, on breakdown and on
             Ctrl-C). Its folder must exist and be writable.
@@ -586,7 +589,7 @@ def run_timed(
     state, body = _start(model)
     history = ts = None
     if saveat.every is not None:
-        first = jax.device_get(save_fields(state, saveat.fields))
+        first = jax.tree.map(host, save_fields(state, saveat.fields))
         history = {k: [np.asarray(v)] for k, v in first.items()}
         ts = [0.0]
     rec = _Recorder(meta, body, history, ts)
@@ -922,7 +925,7 @@ def _load(path: pathlib.Path):
     fresh, body = _start(model)
     described = f"scene {meta['scene']} with the saved params"
     X = _check_array(path, "body.X", arrays, tuple(body.X.shape), body.X.dtype)
-    fresh_X = np.asarray(body.X)
+    fresh_X = host(body.X)
     tol = 64 * np.finfo(fresh_X.dtype).eps * max(1.0, float(np.max(np.abs(fresh_X), initial=0.0)))
     if not np.all(np.abs(X - fresh_X) <= tol):
         worst = int(np.argmax(np.max(np.abs(X - fresh_X), axis=1)))
@@ -932,7 +935,7 @@ def _load(path: pathlib.Path):
             f"another scene or other parameters than the arrays hold"
         )
     boundary = _check_array(path, "body.boundary", arrays, tuple(body.boundary.shape), body.boundary.dtype)
-    if not np.array_equal(boundary, np.asarray(body.boundary)):
+    if not np.array_equal(boundary, host(body.boundary)):
         raise ValueError(
             f"{path}: body.boundary does not match the boundary particles of {described}; the meta "
             f"names another scene or other parameters than the arrays hold"
@@ -950,17 +953,18 @@ def _load(path: pathlib.Path):
             fields[name] = None
         elif isinstance(template, dict):
             fields[name] = {
-                k: jnp.asarray(
+                k: np.asarray(
                     _check_array(path, f"{key}.{k}", arrays, tuple(t.shape), t.dtype), dtype=t.dtype
                 )
                 for k, t in template.items()
             }
         else:
             a = _check_array(path, key, arrays, tuple(template.shape), template.dtype)
-            fields[name] = jnp.asarray(a, dtype=template.dtype)
-    state = State(**fields)
-    if model.devices is not None:  # laid out as the chunks' states are, so that they compile once
-        state = _lay_out(model, state)
+            fields[name] = np.asarray(a, dtype=template.dtype)
+    if model.devices is None:
+        state = State(**jax.tree.map(jnp.asarray, fields))
+    else:  # laid out over the devices as the chunks' states are, so that the chunk compiles once
+        state = State(**place_particles(model, fields, X.shape[0]))
     if int(state.step) != meta["step"]:
         raise ValueError(f"{path}: state.step is {int(state.step)} but its meta says step {meta['step']}")
     if "status" in meta and meta["status"] != int(state.status):

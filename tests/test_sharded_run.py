@@ -54,8 +54,9 @@ SCRIPT = textwrap.dedent(
     kw = dict(dt=1e-8, steps=30, viscosity=jm.ArtificialViscosity())
     a, b = jm.simulate(det, jm.CPDI(), **kw), jm.simulate(det, jm.CPDI(), devices=4, **kw)
     lam = np.asarray(a.state.internal["lambda"]) - np.asarray(b.state.internal["lambda"])
-    r["runs"]["detonation"] = dict(diff=diff(a, b), a=failure(a), b=failure(b),
-                                   lam=float(np.max(np.abs(lam))), burnt=float(np.sum(b.state.internal["lambda"])))
+    burnt = float(np.sum(b.state.internal["lambda"]))
+    lam = float(np.max(np.abs(lam)))
+    r["runs"]["detonation"] = dict(diff=diff(a, b), a=failure(a), b=failure(b), lam=lam, burnt=burnt)
     # the gradient through a sharded run
     def f(P0, devices):
         sc = jm.GasSlab(cells=30, h=1 / 30, pad=60, P0=P0)

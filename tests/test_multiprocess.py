@@ -1,0 +1,138 @@
+"""Two local processes (a coordinator on localhost, 2 forced host devices each, Gloo collectives on
+CPU) run one sharded simulation over their 4 devices, an ensemble, a breakdown and a chunked run
+saved and resumed: the results equal one process's."""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import textwrap
+
+import jax
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+
+pytestmark = pytest.mark.slow
+
+WORKER = textwrap.dedent(
+    """
+    import json, sys
+    import jax
+    process, port = int(sys.argv[1]), sys.argv[2]
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(coordinator_address=f"localhost:{port}", num_processes=2, process_id=process)
+    jax.config.update("jax_enable_x64", True)
+    import numpy as np, jaxmpm as jm
+    from jax.experimental import multihost_utils
+
+    out = dict(process=jax.process_index(), processes=jax.process_count(), devices=len(jax.devices()),
+               local=len(jax.local_devices()))
+    slab = jm.GasSlab(cells=30, h=1 / 30, pad=60)
+    sol = jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=20, devices=jax.devices())
+    out["own_particles"] = sum(s.data.shape[0] for s in sol.state.x.addressable_shards)
+    out["x"] = np.asarray(multihost_utils.process_allgather(sol.state.x, tiled=True)).ravel().tolist()
+    out["F"] = np.asarray(multihost_utils.process_allgather(sol.state.F, tiled=True)).ravel().tolist()
+    out["status"] = int(sol.state.status)
+    vary = {"gamma": np.linspace(1.2, 1.8, 6), "P0": np.linspace(2e5, 4e5, 6)}
+    vary["P0"][4] = 5e7  # breaks down
+    ens = jm.ensemble(slab, jm.CPDI(), vary, dt=2e-5, steps=50, devices=jax.devices())
+    out["ens_devices"] = ens.devices
+    out["ens_status"] = ens.status.tolist()
+    out["ens_failures"] = [(f["member"], f["step"], f["particle"]) for f in ens.failures()]
+    gather = lambda a: np.asarray(multihost_utils.process_allgather(a, tiled=True))
+    out["ens_x"] = gather(ens.solution.state.x).ravel().tolist()
+    # a breakdown of a run over both processes: the same message on each
+    try:
+        jm.simulate(slab, jm.SPQ(), dt=3e-4, steps=50, devices=jax.devices())
+    except jm.SimulationError as e:
+        out["error"] = str(e)
+    # a chunked run over both processes, saved by the first and resumed: bit for bit
+    from jaxmpm import long_run
+    path = f"{sys.argv[3]}/run.npz"
+    kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=jax.devices())
+    full = long_run.run(slab, jm.MPQ(), **kw)
+    long_run.run(slab, jm.MPQ(), out=path, checkpoint_every=2, **(kw | dict(steps=14)))
+    if process == 0:  # extend the saved run's target, as a user continuing it would
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(str(arrays["meta"]))
+        meta["steps"] = 30
+        arrays["meta"] = np.asarray(json.dumps(meta))
+        np.savez(path, **arrays)
+    multihost_utils.sync_global_devices("extended")
+    res = long_run.resume(path, progress=False)
+    out["resume_identical"] = all(
+        np.array_equal(multihost_utils.process_allgather(getattr(res.state, k), tiled=True),
+                       multihost_utils.process_allgather(getattr(full.state, k), tiled=True))
+        for k in ("x", "v", "F", "sigma", "corners"))
+    out["resume_x"] = np.asarray(multihost_utils.process_allgather(res.state.x, tiled=True)).ravel().tolist()
+    print(json.dumps(out))
+    """
+)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def test_two_processes_equal_one(tmp_path):
+    script = tmp_path / "worker.py"
+    script.write_text(WORKER)
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = dict(os.environ, XLA_FLAGS=flags.strip())
+    port = str(_free_port())
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(script), str(i), port, str(tmp_path)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for i in range(2)
+    ]
+    try:
+        outs = [p.communicate(timeout=600) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+    for p, (_, err) in zip(procs, outs):
+        assert p.returncode == 0, err[-3000:]
+    a, b = (json.loads(out.strip().splitlines()[-1]) for out, _ in outs)
+    assert (a["process"], b["process"]) == (0, 1)
+    assert a["processes"] == 2 and a["devices"] == 4 and a["local"] == 2
+    assert a["own_particles"] == b["own_particles"] == 30  # each process computes its half of 60
+    # One process, one device, the same runs
+    slab = jm.GasSlab(cells=30, h=1 / 30, pad=60)
+    one = jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=20)
+    for key in ("x", "F"):
+        assert a[key] == b[key]  # both processes gathered the same global state
+        ref = np.asarray(getattr(one.state, key)).ravel()
+        # the grid sums in another order: round-off (measured 1e-16 of the largest value)
+        assert np.max(np.abs(np.asarray(a[key]) - ref)) <= 1e-13 * np.max(np.abs(ref)), key
+    assert a["status"] == b["status"] == 0
+    vary = {"gamma": np.linspace(1.2, 1.8, 6), "P0": np.linspace(2e5, 4e5, 6)}
+    vary["P0"][4] = 5e7
+    ens = jm.ensemble(slab, jm.CPDI(), vary, dt=2e-5, steps=50, devices=jax.devices()[:1])
+    assert a["ens_devices"] == 4
+    assert a["ens_status"] == b["ens_status"] == ens.status.tolist() and ens.status[4] != 0
+    assert (
+        a["ens_failures"]
+        == b["ens_failures"]
+        == [[f["member"], f["step"], f["particle"]] for f in ens.failures()]
+    )
+    # members are independent: each computed exactly as in one process
+    assert a["ens_x"] == np.asarray(ens.solution.state.x).ravel().tolist()
+    with pytest.raises(jm.SimulationError) as e:
+        jm.simulate(slab, jm.SPQ(), dt=3e-4, steps=50)
+    assert a["error"] == b["error"] == str(e.value)
+    assert a["resume_identical"] and b["resume_identical"]
+    x = np.asarray(jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30).state.x).ravel()
+    assert np.max(np.abs(np.asarray(a["resume_x"]) - x)) <= 1e-13 * np.max(np.abs(x))
