@@ -7,7 +7,9 @@ chunks, writes the whole run to ``out`` atomically. That covers the state (MPQ c
 matrices and traction points included), status, step count, parameters, and the history so far. A
 run that breaks down stops at its last good step (the failing step is never taken), saves that,
 and says where. ``resume(path)`` continues a saved run with the same chunk boundaries and the same
-compiled chunk, so a resumed run equals an uninterrupted one bit for bit.
+compiled chunk, so a resumed run equals an uninterrupted one bit for bit (a run spread over several
+devices, ``devices=``, continues on as many). With several processes the first writes the whole run
+and every process reads it.
 
 The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
 
@@ -15,7 +17,8 @@ The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
   ``format_version``, ``jaxmpm_version``, ``scene`` and ``params`` (every scene parameter),
   ``interpolator`` (name and options), ``transfer``, ``artificial_cells``, ``ordering``,
   ``cfl_limit``, ``dt``, ``steps`` (the target), ``chunk``, ``saveat``, ``checkpoint_every``,
-  ``viscosity`` (``[c_quad, c_lin]`` or null; a file without it has none), ``step`` (steps done),
+  ``viscosity`` (``[c_quad, c_lin]`` or null; a file without it has none), ``devices`` (the count
+  of devices the run was spread over, or null; a file without it ran on one), ``step`` (steps done),
   ``complete``, ``status`` and ``failure`` (or null), ``saved_at`` (UTC).
 - ``state.<name>``: the state at ``step``: ``t``, ``step``, ``x`` (n, dim), ``v`` (n, dim),
   ``F`` (n, dim, dim), ``sigma`` (n, dim, dim), and where the run has them ``C``, ``corners``,
@@ -707,7 +710,7 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
     """
     if not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"path must be a file path (a str or os.PathLike), got {path!r}")
-    sol, meta, _ = _load(pathlib.Path(path))
+    sol, meta, _ = _load(pathlib.Path(path), on_devices=False)
     return sol, meta
 
 
@@ -814,9 +817,10 @@ def _is(value, kind: str) -> bool:
     return isinstance(value, (int, float))
 
 
-def _settings(path: pathlib.Path, meta: dict):
+def _settings(path: pathlib.Path, meta: dict, on_devices: bool = True):
     """The run the metadata describes: ``(scene, model, dt_arr, saveat)``, every name and value
-    checked (before anything is traced)."""
+    checked (before anything is traced); with ``on_devices``, on as many devices as it ran on (else
+    on one: to read it anywhere)."""
     name = meta["scene"]
     if not isinstance(name, str) or name not in SCENES:
         raise ValueError(f"{path}: unknown scene {name!r}; allowed: {_names(SCENES)}")
@@ -884,7 +888,7 @@ def _settings(path: pathlib.Path, meta: dict):
             cfl_limit=meta["cfl_limit"],
             ordering=meta["ordering"],
             viscosity=_viscosity_from(meta.get("viscosity")),
-            devices=meta.get("devices"),
+            devices=meta.get("devices") if on_devices else None,
         )
     except (TypeError, ValueError) as e:
         raise ValueError(f"{path}: its meta does not describe a run: {e}") from None
@@ -919,9 +923,9 @@ def _check_array(path: pathlib.Path, key: str, arrays: dict, shape: tuple, dtype
     return a
 
 
-def _load(path: pathlib.Path):
+def _load(path: pathlib.Path, on_devices: bool = True):
     meta, arrays = _read(path)
-    scene, model, dt_arr, saveat = _settings(path, meta)
+    scene, model, dt_arr, saveat = _settings(path, meta, on_devices)
     fresh, body = _start(model)
     described = f"scene {meta['scene']} with the saved params"
     X = _check_array(path, "body.X", arrays, tuple(body.X.shape), body.X.dtype)

@@ -136,3 +136,46 @@ def test_two_processes_equal_one(tmp_path):
     assert a["resume_identical"] and b["resume_identical"]
     x = np.asarray(jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30).state.x).ravel()
     assert np.max(np.abs(np.asarray(a["resume_x"]) - x)) <= 1e-13 * np.max(np.abs(x))
+
+
+def test_command_line_run_over_two_processes(tmp_path, capsys):
+    """``jaxmpm run ... --coordinator --processes --process-id`` (what ``--distributed`` reads from
+    SLURM): the first process reports the run over all 4 devices and saves it; the other prints
+    nothing; the report equals one process's to round-off."""
+    from jaxmpm.cli import main
+
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAXMPM_PROGRESS="0")
+    port = str(_free_port())
+    run = ["run", "gas-slab", "cells=30", "h=0.0333333333", "pad=60", "--interpolator", "cpdi"]
+    run += ["--dt", "5e-6", "--steps", "20", "--json"]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "jaxmpm.cli", *run, "--out", str(tmp_path / "run.npz"), "--chunk", "8"]
+            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for i in range(2)
+    ]
+    try:
+        outs = [p.communicate(timeout=600) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+    assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
+    assert outs[1] == ("", "")  # the second process says nothing
+    many = json.loads(outs[0][0])
+    assert main(run) == 0
+    one = json.loads(capsys.readouterr().out)
+    assert many["devices"] == 4 and "devices" not in one and many["out"] == str(tmp_path / "run.npz")
+    assert many["status"] == one["status"] == 0
+    for key in ("x", "F"):
+        a, b = np.asarray(many["particles"][key]), np.asarray(one["particles"][key])
+        assert np.max(np.abs(a - b)) <= 1e-13 * np.max(np.abs(b)), key
+    _, meta = jm.long_run.load(tmp_path / "run.npz")
+    assert meta["devices"] == 4 and meta["complete"] and meta["step"] == 20

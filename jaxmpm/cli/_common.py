@@ -6,6 +6,7 @@ import json
 import os
 import pathlib
 import re
+import sys
 import tempfile
 
 import numpy as np
@@ -163,3 +164,134 @@ def scalar(x) -> float | None:
         ``float(x)``, or ``None``.
     """
     return None if x is None else float(x)
+
+
+def add_process_options(p, devices: bool = True) -> None:
+    """Options to spread a run over several devices and to start as one of several processes.
+
+    Args:
+        p: a subcommand's parser.
+        devices: also ``--devices`` (a command that picks its devices itself has none).
+    """
+    g = p.add_argument_group("several devices and processes")
+    if devices:
+        g.add_argument(
+            "--devices",
+            metavar="K",
+            help="spread the particles over K devices, or 'all' (jax.devices(); the default with "
+            "several processes)",
+        )
+    g.add_argument(
+        "--distributed",
+        action="store_true",
+        help="start as one of several processes (jax.distributed.initialize); SLURM's or Open MPI's "
+        "environment gives the coordinator, the process count and this process's id",
+    )
+    g.add_argument(
+        "--coordinator", metavar="HOST:PORT", help="instead of a cluster's environment (with the next two)"
+    )
+    g.add_argument("--processes", type=int, metavar="N", help="with --coordinator: the number of processes")
+    g.add_argument("--process-id", type=int, metavar="I", help="with --coordinator: this process, 0 to N-1")
+
+
+def start_processes(args) -> bool:
+    """Join the other processes of ``--distributed`` or ``--coordinator`` (before anything touches
+    a device), and silence the output of every process but the first (the processes compute
+    together and hold the same gathered results; the first reports them, its exit status is theirs).
+
+    Args:
+        args: the parsed command line (``add_process_options``).
+
+    Returns:
+        Whether this process is the one that reports (the first, or the only one).
+
+    Raises:
+        UsageError: incomplete or inconsistent options, or no cluster to join.
+    """
+    import jax
+
+    explicit = (args.coordinator, args.processes, args.process_id)
+    if any(v is not None for v in explicit):
+        if any(v is None for v in explicit):
+            raise UsageError("--coordinator, --processes and --process-id go together")
+        if args.processes < 1 or not 0 <= args.process_id < args.processes:
+            raise UsageError(
+                f"--processes must be >= 1 and --process-id from 0 to {args.processes - 1}, got "
+                f"--processes {args.processes} --process-id {args.process_id}"
+            )
+        kwargs = dict(
+            coordinator_address=args.coordinator, num_processes=args.processes, process_id=args.process_id
+        )
+    elif args.distributed:
+        kwargs = {}
+    else:
+        return True
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU devices talk through Gloo
+    try:
+        jax.distributed.initialize(**kwargs)
+    except (RuntimeError, ValueError) as e:
+        raise UsageError(f"--distributed: could not join the other processes: {e}") from None
+    first = jax.process_index() == 0
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if first:
+        # The collectives' own lines (Gloo's "connected to N peer ranks") are written to the C-level
+        # standard output: send them to stderr, and keep stdout for the report (--json).
+        report = os.dup(1)
+        os.dup2(2, 1)
+        sys.stdout = os.fdopen(report, "w")
+    else:  # one report, the first process's: they all hold the same, gathered results
+        quiet = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(quiet, 1)
+        os.dup2(quiet, 2)
+        sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the rest of this process
+    return first
+
+
+def devices_option(args) -> int | None:
+    """The ``--devices`` value: a count, ``None`` (one device), or every device with ``all`` (the
+    default when several processes run).
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The count of devices, or ``None``.
+
+    Raises:
+        UsageError: neither an integer >= 1 nor ``all``.
+    """
+    import jax
+
+    value = args.devices
+    if value is None:
+        return len(jax.devices()) if jax.process_count() > 1 else None
+    if value == "all":
+        return len(jax.devices())
+    try:
+        k = int(value)
+    except ValueError:
+        k = 0
+    if k < 1:
+        raise UsageError(f"--devices must be an integer >= 1 or 'all', got {value!r}")
+    return k
+
+
+def local_solution(sol: jm.Solution) -> jm.Solution:
+    """``sol`` with every array whole on this process (gathered from all processes when a run was
+    spread over several; every process must call it).
+
+    Args:
+        sol: a solution.
+
+    Returns:
+        The same solution, its arrays local.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from jaxmpm._util import host
+
+    if jax.process_count() == 1:
+        return sol
+    return jax.tree.map(lambda a: jnp.asarray(host(a)), sol)

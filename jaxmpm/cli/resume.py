@@ -10,7 +10,7 @@ import sys
 
 import jaxmpm as jm
 
-from ._common import Breakdown, UsageError
+from ._common import Breakdown, UsageError, add_process_options, local_solution, start_processes
 from .run import report
 
 
@@ -24,6 +24,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("file", help="the saved run (.npz)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_process_options(p, devices=False)  # a run continues on as many devices as it was saved from
     p.set_defaults(handler=command)
 
 
@@ -43,9 +44,10 @@ def command(args) -> int:
             or the file cannot be written.
         Breakdown: the run broke down (now, or before it was saved).
     """
+    first = start_processes(args)
     try:
         sol, compile_s, wall_s, meta = jm.long_run.resume_timed(
-            args.file, progress=False if args.no_progress else None
+            args.file, progress=False if args.no_progress or not first else None
         )
     except jm.long_run.Interrupted as e:
         print(f"jaxmpm: {e}", file=sys.stderr)
@@ -56,7 +58,8 @@ def command(args) -> int:
         raise UsageError(f"cannot write {args.file}: {e.strerror or e}") from None
     except jm.SimulationError as e:
         dt = jm.long_run.load(args.file)[1]["dt"]  # saved with the failure: the run's fixed step
-        raise Breakdown(e.solution, dt=dt, saved_in=pathlib.Path(args.file)) from None
+        raise Breakdown(local_solution(e.solution), dt=dt, saved_in=pathlib.Path(args.file)) from None
+    sol = local_solution(sol)
     scene = jm.SCENES[meta["scene"]](**meta["params"])
     run = dict(
         scene=meta["scene"],
@@ -68,6 +71,8 @@ def command(args) -> int:
         steps=meta["steps"],
         out=str(args.file),
     )
+    if meta.get("devices") is not None:
+        run["devices"] = meta["devices"]
     return report(run, scene, sol, compile_s, wall_s, as_json=args.json)
 
 

@@ -11,10 +11,22 @@ import numpy as np
 import jaxmpm as jm
 from jaxmpm import _memory
 from jaxmpm._simulate import advance, failure_message, finish_to_end, prepare
+from jaxmpm._step import shard_particles
 from jaxmpm.long_run import wait
 
 from . import _assign
-from ._common import Breakdown, UsageError, floats, print_json, scalar, writable_folder
+from ._common import (
+    Breakdown,
+    UsageError,
+    add_process_options,
+    devices_option,
+    floats,
+    local_solution,
+    print_json,
+    scalar,
+    start_processes,
+    writable_folder,
+)
 
 CHUNK_S = 0.25
 """About how long one compiled chunk of a plain ``jaxmpm run`` (no ``--out``) takes: between chunks
@@ -82,6 +94,7 @@ def add_parser(subparsers) -> None:
         metavar="NAME[,NAME...]",
         help="add d(F_rms_rel)/d(NAME) for continuous parameters (scene parameters, h, dt)",
     )
+    add_process_options(p)
     p.set_defaults(handler=command)
 
 
@@ -98,6 +111,7 @@ def command(args) -> int:
         UsageError: bad input.
         Breakdown: the run broke down (after writing the frames of ``--vtk`` up to it).
     """
+    first = start_processes(args)
     scene = _assign.scene(args.scene, args.params)
     if args.cfl_limit.lower() == "none":
         cfl = None
@@ -122,6 +136,7 @@ def command(args) -> int:
         cfl_limit=cfl,
         ordering=args.ordering,
         viscosity=viscosity,
+        devices=devices_option(args),
     )
     if args.t_end is not None:
         if args.dt is not None or args.steps is not None:
@@ -154,7 +169,7 @@ def command(args) -> int:
         settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
-    progress = False if args.no_progress else None
+    progress = False if args.no_progress or not first else None
     try:
         if args.out is not None:
             try:
@@ -171,18 +186,21 @@ def command(args) -> int:
                     **settings,
                 )
             except jm.SimulationError as e:
-                _breakdown_json(args, scene, e.solution, viscosity)
-                raise Breakdown(e.solution, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
+                failed = local_solution(e.solution)
+                _breakdown_json(args, scene, failed, viscosity)
+                raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
         else:
             try:
                 sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
             except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
-                if args.vtk is not None:
-                    _write_vtk(args.vtk, scene, interp, settings, e.solution)
-                _breakdown_json(args, scene, e.solution, viscosity)
-                raise Breakdown(e.solution, dt=args.dt) from None
+                failed = local_solution(e.solution)
+                if args.vtk is not None and first:
+                    _write_vtk(args.vtk, scene, interp, settings, failed)
+                _breakdown_json(args, scene, failed, viscosity)
+                raise Breakdown(failed, dt=args.dt) from None
     except ValueError as e:
         raise UsageError(str(e)) from None
+    sol = local_solution(sol)
     grad = grad_s = None
     if names is not None:
         t0 = time.perf_counter()
@@ -193,7 +211,9 @@ def command(args) -> int:
         grad = {n: float(g[n]) for n in names}
         grad_s = time.perf_counter() - t0
     run = _settings(args, sol, viscosity)
-    if args.vtk is not None:
+    if settings["devices"] is not None:
+        run["devices"] = settings["devices"]
+    if args.vtk is not None and first:
         paths = _write_vtk(args.vtk, scene, interp, settings, sol)
         run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
     return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
@@ -245,7 +265,8 @@ def _to_end_in_chunks(scene, interp, timing, settings, chunk):
 @eqx.filter_jit
 def _start(model):
     s = jm.setup(model)
-    return jm.initial_state(model, s), s.body
+    state = jm.initial_state(model, s)
+    return shard_particles(model, state, state.x.shape[0]), s.body
 
 
 @eqx.filter_jit
