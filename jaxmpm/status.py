@@ -62,9 +62,7 @@ def combine(checks, sharded: bool = False):
         status = sum(jnp.max(jnp.where(mask, jnp.int32(bit), jnp.int32(0))) for bit, mask in _by_bit(checks))
         lowest = status & -status
         n = checks[0][1].shape[0]
-        hit = functools.reduce(
-            operator.or_, (mask & ((lowest & bit) != 0) for bit, mask in checks)
-        )
+        hit = functools.reduce(operator.or_, (mask & ((lowest & bit) != 0) for bit, mask in checks))
         first = jnp.min(jnp.where(hit, jnp.arange(n, dtype=jnp.int32), jnp.int32(n)))
         return status, jnp.where(status != 0, first, jnp.int32(-1))
     per = None

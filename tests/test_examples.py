@@ -52,6 +52,8 @@ EXCLUDED = {
     r"(python3? -m )?pip install\b.*": "installing: CI installs the package itself (.ci/run)",
     r"python3? -m pytest\b.*": "the test suite itself: CI runs it (.ci/run), and this test is part of it",
     r"mkdocs serve\b.*": "a server, it runs until stopped; CI builds the same site (mkdocs build --strict)",
+    r"srun\b.*": "a cluster's launcher: CI has no cluster; docs/scale.md's next example and "
+    "tests/test_multiprocess.py run the same with two local processes",
 }
 
 # The long examples: they run only when JAXMPM_LONG_EXAMPLES=1 (a CI step after the suite, marker
