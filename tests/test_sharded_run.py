@@ -41,6 +41,14 @@ SCRIPT = textwrap.dedent(
             b = jm.simulate(slab, make(), devices=4, **kw)
             r["runs"][f"{i}-{t}"] = dict(diff=diff(a, b), a=failure(a), b=failure(b),
                                          spread=list(b.state.x.sharding.spec))
+    # artificial cells at both free ends (the talk's gas expansion; 1D and 2D)
+    for i in ("spq", "cpdi", "mpq"):
+        for dim in (1, 2):
+            sc = jm.GasExpansion(cells=8, pad=4, dim=dim)
+            kw = dict(dt=1e-5, steps=25, artificial_cells=1)
+            a = jm.simulate(sc, jm.INTERPOLATORS[i](), **kw)
+            b = jm.simulate(sc, jm.INTERPOLATORS[i](), devices=4, **kw)
+            r["runs"][f"artificial-{i}-{dim}d"] = dict(diff=diff(a, b), a=failure(a), b=failure(b))
     # 2D, symmetry planes and the atmosphere's traction, to an end time (CFL steps): 112 particles
     for i in ("spq", "cpdi", "mpq"):
         disk = jm.BlastDisk(cells=6, pad=8)
@@ -103,7 +111,7 @@ ROUND_OFF = 1e-13
 def test_every_interpolator_and_transfer_on_four_devices_equals_one(four_devices):
     r = four_devices
     assert r["devices"] == 4
-    assert len(r["runs"]) == len(jm.INTERPOLATORS) * len(jm.TRANSFERS) + 4
+    assert len(r["runs"]) == len(jm.INTERPOLATORS) * len(jm.TRANSFERS) + 6 + 4
     for name, run in r["runs"].items():
         assert max(run["diff"].values()) < ROUND_OFF, (name, run["diff"])
         assert run["a"] == run["b"], (name, run)  # the same status, failing step and particle
