@@ -11,8 +11,8 @@ folded domains. About 10 s a configuration on 2 cores.
     python experiments/blast_disk.py                  # the table of docs/multid.md
     python experiments/blast_disk.py cpdi flip node   # one configuration: interpolator transfer [options]
 
-Options: `musl`, `visc` (artificial viscosity), `cell` or `node` (volume averaging), `ppc1`, `ratio=R`,
-`cells=N`.
+Options: `musl`, `visc` (artificial viscosity), `shear=C` (a shear viscosity of coefficient C), `cell`
+or `node` (volume averaging), `ppc1`, `ratio=R`, `cells=N`.
 """
 
 import sys
@@ -39,6 +39,15 @@ CONFIGS = [
 ]
 
 
+def _viscosity(opts, kv):
+    """``visc``: the bulk viscosity; ``shear=C``: a shear viscosity of coefficient C (bulk terms 0
+    unless ``visc`` is given too)."""
+    shear = float(kv["shear"]) if "shear" in kv else None
+    if "visc" in opts:
+        return jm.ArtificialViscosity(c_shear=shear)
+    return None if shear is None else jm.ArtificialViscosity(c_quad=0.0, c_lin=0.0, c_shear=shear)
+
+
 def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
     kv = dict(o.split("=") for o in opts if "=" in o)
     ratio, cells = float(kv.get("ratio", 10.0)), int(kv.get("cells", 32))
@@ -48,7 +57,7 @@ def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
     kwargs = dict(
         transfer=jm.TRANSFERS[transfer](),
         ordering="musl" if "musl" in opts else "usl",
-        viscosity=jm.ArtificialViscosity() if "visc" in opts else None,
+        viscosity=_viscosity(opts, kv),
         volume_average=next((o for o in opts if o in ("cell", "node")), None),
     )
     sol = jm.simulate(

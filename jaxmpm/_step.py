@@ -780,8 +780,14 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all
             q = model.viscosity.pressure_of(J_old, J_new, dt, rho_new, c, h)
         a, b = jax.vmap(mat.pressure_terms)(rho_new, z_new)
         dJ = (J_new - J_old) / g.rho0
-        e_g = (e_old - (0.5 * p_old + q + 0.5 * a) * dJ) / (1.0 + 0.5 * b * dJ)
-        sig.append(_eos_stress(a + b * e_g + q, dim, dtype))
+        shear = model.viscosity is not None and model.viscosity.c_shear is not None
+        e_start = e_old
+        if shear:  # the shear viscosity's stress, and its work as heat
+            s_visc, power = model.viscosity.shear_stress(F_old, F_g, dt, rho_new, c, h)
+            e_start = e_old + dt * power
+        e_g = (e_start - (0.5 * p_old + q + 0.5 * a) * dJ) / (1.0 + 0.5 * b * dJ)
+        s_g = _eos_stress(a + b * e_g + q, dim, dtype)
+        sig.append(s_g + s_visc if shear else s_g)
         energies.append(e_g)
         if isinstance(mat, ProgrammedBurn):
             p_products = jax.vmap(mat.products.pressure)(rho_new, e_g)

@@ -17,7 +17,8 @@ The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
   ``format_version``, ``jaxmpm_version``, ``scene`` and ``params`` (every scene parameter),
   ``interpolator`` (name and options), ``transfer``, ``artificial_cells``, ``ordering``,
   ``cfl_limit``, ``dt``, ``steps`` (the target), ``chunk``, ``saveat``, ``checkpoint_every``,
-  ``viscosity`` (``[c_quad, c_lin]`` or null; a file without it has none), ``devices`` (the count
+  ``viscosity`` (``[c_quad, c_lin]``, with ``c_shear`` third when there is a shear viscosity, or
+  null; a file without it has none), ``devices`` (the count
   of devices the run was spread over, or null; a file without it ran on one), ``step`` (steps done),
   ``complete``, ``status`` and ``failure`` (or null), ``saved_at`` (UTC).
 - ``state.<name>``: the state at ``step``: ``t``, ``step``, ``x`` (n, dim), ``v`` (n, dim),
@@ -586,7 +587,7 @@ def run_timed(
         chunk=chunk,
         saveat=dict(every=saveat.every, fields=list(saveat.fields)),
         checkpoint_every=checkpoint_every,
-        viscosity=None if viscosity is None else [float(viscosity.c_quad), float(viscosity.c_lin)],
+        viscosity=None if viscosity is None else viscosity.coefficients(),
         devices=None if model.devices is None else len(model.devices),
     )
     state, body = _start(model)
@@ -896,12 +897,16 @@ def _settings(path: pathlib.Path, meta: dict, on_devices: bool = True):
 
 
 def _viscosity_from(saved) -> ArtificialViscosity | None:
-    """The run's artificial viscosity from its meta's ``viscosity`` (``[c_quad, c_lin]`` or null)."""
+    """The run's artificial viscosity from its meta's ``viscosity`` (``[c_quad, c_lin]``,
+    ``[c_quad, c_lin, c_shear]`` or null)."""
     if saved is None:
         return None
-    if not isinstance(saved, list) or len(saved) != 2:
-        raise ValueError(f"viscosity must be [c_quad, c_lin] or null, got {saved!r}")
-    return ArtificialViscosity(c_quad=float(saved[0]), c_lin=float(saved[1]))
+    if not isinstance(saved, list) or len(saved) not in (2, 3):
+        raise ValueError(
+            f"viscosity must be [c_quad, c_lin], [c_quad, c_lin, c_shear] or null, got {saved!r}"
+        )
+    shear = float(saved[2]) if len(saved) == 3 else None
+    return ArtificialViscosity(c_quad=float(saved[0]), c_lin=float(saved[1]), c_shear=shear)
 
 
 def _check_array(path: pathlib.Path, key: str, arrays: dict, shape: tuple, dtype) -> np.ndarray:

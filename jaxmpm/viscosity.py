@@ -11,6 +11,15 @@ flows are untouched. ``rho = rho0 / J`` is the current density, ``c`` the materi
 rate of deformation of the step, ``(J_new - J_old) / (dt J_new)``. This is the form of Wilkins,
 "Use of artificial viscosity in multidimensional fluid dynamic calculations" (J. Comput. Phys.
 36, 1980), as Uintah's MPM applies it per particle.
+
+A shear viscosity (``c_shear``, off by default) adds a deviatoric viscous stress in every flow,
+
+    s = 2 mu dev(D),     mu = c_shear rho c h,     D = sym(F_new F_old^-1 - I) / dt,
+
+a linear (Landshoff-type) viscosity on the deviatoric rate of deformation. A gas has no shear
+stiffness, so nothing else resists the spurious shear of its particle arrangement in 2D and 3D; this
+damps it, at the price of also damping the physical shear of the flow (a radial expansion has a
+deviatoric rate too). Its work heats a material with an energy equation.
 """
 
 import equinox as eqx
@@ -23,20 +32,71 @@ from ._util import as_float, det
 from .materials import AbstractMaterial
 
 
+def _optional_float(x):
+    return None if x is None else as_float(x)
+
+
 class ArtificialViscosity(eqx.Module):
-    """Bulk artificial viscosity, active in compression only.
+    """Bulk artificial viscosity, active in compression only, and optionally a shear viscosity.
 
     Attributes:
         c_quad: quadratic (von Neumann-Richtmyer) coefficient, dimensionless (default 2.0).
         c_lin: linear (Landshoff) coefficient, dimensionless (default 0.2).
+        c_shear: coefficient of the shear viscosity ``mu = c_shear rho c h``, dimensionless, or
+            ``None`` (default) for none.
     """
 
     c_quad: Float[Array, ""] = eqx.field(converter=as_float, default=2.0)
     c_lin: Float[Array, ""] = eqx.field(converter=as_float, default=0.2)
+    c_shear: Float[Array, ""] | None = eqx.field(converter=_optional_float, default=None)
 
     def __check_init__(self):
         check_nonnegative("c_quad", self.c_quad)
         check_nonnegative("c_lin", self.c_lin)
+        if self.c_shear is not None:
+            check_nonnegative("c_shear", self.c_shear)
+
+    def coefficients(self) -> list[float]:
+        """``[c_quad, c_lin]``, and ``c_shear`` after them when there is a shear viscosity (as the
+        command line's ``--viscosity`` and a saved run's ``meta`` write them).
+
+        Returns:
+            The coefficients.
+        """
+        out = [float(self.c_quad), float(self.c_lin)]
+        return out if self.c_shear is None else out + [float(self.c_shear)]
+
+    def shear_stress(
+        self,
+        F_old: Float[Array, "n dim dim"],
+        F_new: Float[Array, "n dim dim"],
+        dt: Float[Array, ""],
+        rho: Float[Array, " n"],
+        c: Float[Array, " n"],
+        h: Float[Array, ""],
+    ) -> tuple[Float[Array, "n dim dim"], Float[Array, " n"]]:
+        """The deviatoric viscous stress ``2 mu dev(D)`` of each particle and its power per unit
+        mass, ``s : D / rho`` (>= 0), for ``c_shear`` not ``None``.
+
+        Args:
+            F_old: deformation gradients before the step.
+            F_new: deformation gradients after the step.
+            dt: the time step.
+            rho: current densities.
+            c: sound speeds.
+            h: grid spacing.
+
+        Returns:
+            ``(s, power)``.
+        """
+        dim = F_new.shape[-1]
+        eye = jnp.eye(dim, dtype=F_new.dtype)
+        L = (jnp.einsum("nij,njk->nik", F_new, jnp.linalg.inv(F_old)) - eye[None]) / dt
+        D = 0.5 * (L + jnp.swapaxes(L, 1, 2))
+        dev = D - (jnp.trace(D, axis1=1, axis2=2) / dim)[:, None, None] * eye[None]
+        mu = self.c_shear * rho * c * h
+        s = 2.0 * mu[:, None, None] * dev
+        return s, jnp.sum(s * dev, axis=(1, 2)) / rho
 
     def pressure(
         self,
@@ -99,7 +159,8 @@ class ArtificialViscosity(eqx.Module):
         rho0: Float[Array, ""],
         h: Float[Array, ""],
     ) -> Float[Array, "n dim dim"]:
-        """The viscous stress ``-q I`` to add to each particle's Cauchy stress.
+        """The viscous stress ``-q I`` (plus ``2 mu dev(D)`` with ``c_shear``) to add to each
+        particle's Cauchy stress.
 
         Args:
             material: as for ``pressure``.
@@ -110,8 +171,13 @@ class ArtificialViscosity(eqx.Module):
             h: as for ``pressure``.
 
         Returns:
-            ``-q I`` per particle.
+            The viscous stress per particle.
         """
         q = self.pressure(material, F_old, F_new, dt, rho0, h)
         dim = F_new.shape[-1]
-        return -q[:, None, None] * jnp.eye(dim, dtype=F_new.dtype)[None]
+        bulk = -q[:, None, None] * jnp.eye(dim, dtype=F_new.dtype)[None]
+        if self.c_shear is None:
+            return bulk
+        J_new = det(F_new)
+        c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)
+        return bulk + self.shear_stress(F_old, F_new, dt, rho0 / J_new, c, h)[0]

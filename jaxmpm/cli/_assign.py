@@ -214,21 +214,26 @@ def choices(text: str, option: str, allowed: Sequence[str]) -> list[str]:
 
 
 def viscosity(text: str | None) -> jm.ArtificialViscosity | None:
-    """``--viscosity QUAD,LIN`` as the artificial viscosity (``None``: none).
+    """``--viscosity QUAD,LIN[,SHEAR]`` as the artificial viscosity (``None``: none).
 
     Args:
-        text: the option's value, e.g. ``"2.0,0.2"``, or ``None`` when not given.
+        text: the option's value, e.g. ``"2.0,0.2"`` or ``"2.0,0.2,0.5"``, or ``None`` when not given.
 
     Returns:
         The ``ArtificialViscosity``, or ``None``.
 
     Raises:
-        UsageError: not two numbers >= 0.
+        UsageError: not two or three numbers >= 0.
     """
     if text is None:
         return None
     try:
-        quad, lin = (float(c) for c in text.split(","))
-        return jm.ArtificialViscosity(c_quad=quad, c_lin=lin)
+        values = [float(c) for c in text.split(",")]
+        if len(values) not in (2, 3):
+            raise ValueError(f"{len(values)} numbers")
+        shear = values[2] if len(values) == 3 else None
+        return jm.ArtificialViscosity(c_quad=values[0], c_lin=values[1], c_shear=shear)
     except ValueError as e:
-        raise UsageError(f"--viscosity must be QUAD,LIN (two numbers >= 0), got {text!r}: {e}") from None
+        raise UsageError(
+            f"--viscosity must be QUAD,LIN or QUAD,LIN,SHEAR (numbers >= 0), got {text!r}: {e}"
+        ) from None

@@ -70,8 +70,9 @@ def add_parser(subparsers) -> None:
         "--viscosity",
         nargs="?",
         const="2.0,0.2",
-        metavar="QUAD,LIN",
-        help="artificial viscosity in compression (default coefficients 2.0,0.2)",
+        metavar="QUAD,LIN[,SHEAR]",
+        help="artificial viscosity in compression (default coefficients 2.0,0.2), and a shear viscosity "
+        "with a third coefficient",
     )
     p.add_argument(
         "--cfl-limit",
@@ -295,7 +296,7 @@ def _settings(args, sol, viscosity) -> dict:
     if args.t_end is not None:
         run.update(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps, steps_taken=int(sol.state.step))
     if viscosity is not None:
-        run["viscosity"] = [float(viscosity.c_quad), float(viscosity.c_lin)]
+        run["viscosity"] = viscosity.coefficients()
     if args.out is not None:
         run["out"] = str(args.out)
     return run
