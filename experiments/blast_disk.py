@@ -12,7 +12,7 @@ folded domains. About 10 s a configuration on 2 cores.
     python experiments/blast_disk.py cpdi flip node   # one configuration: interpolator transfer [options]
 
 Options: `musl`, `visc` (artificial viscosity), `shear=C` (a shear viscosity of coefficient C), `cell`
-or `node` (volume averaging), `ppc1`, `ratio=R`, `cells=N`.
+or `node` (volume averaging), `ppc1`, `ratio=R`, `cells=N`, `pad=P` (grid beyond the charge, in radii).
 """
 
 import sys
@@ -52,7 +52,8 @@ def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
     kv = dict(o.split("=") for o in opts if "=" in o)
     ratio, cells = float(kv.get("ratio", 10.0)), int(kv.get("cells", 32))
     ppc = 1 if "ppc1" in opts else 2
-    scene = jm.BlastDisk(P0=ratio * 1e5, cells=cells, ppc=ppc, pad=int((4.5 if ratio > 50 else 2.5) * cells))
+    pad = float(kv.get("pad", 4.5 if ratio > 50 else 2.5))  # grid beyond the charge, in radii
+    scene = jm.BlastDisk(P0=ratio * 1e5, cells=cells, ppc=ppc, pad=int(pad * cells))
     T = 2.0 * float(scene.transit_time)
     kwargs = dict(
         transfer=jm.TRANSFERS[transfer](),
