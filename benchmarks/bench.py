@@ -4,6 +4,9 @@ Million particle-steps per second of a whole ``simulate`` for each interpolator 
 ``step`` called from Python, at 1k to 1M particles, in float32 and float64, compile time measured
 apart, next to the same algorithm written directly in NumPy and plain JAX, and, when the packages
 are installed (``pip install jaxmpm[bench]``), as Taichi and Warp kernels (``benchmarks._baselines``).
+The same in 2D and 3D (``sizes_2d``, ``sizes_3d``): jaxmpm's interpolators on the gas expansion on a
+square (cube), beside the same four reference codes of SPQ in 2D and 3D (``benchmarks._baselines_2d``,
+whose ``PROBLEM_ND`` says why the 2D/3D problem has ``beta = 5 /s``). Every row carries its ``dim``.
 Also the reverse-mode cost (``jax.grad`` through the checkpointed loop: time against the forward
 run, XLA's buffer bytes against the step count) and ensemble throughput per member.
 
@@ -39,6 +42,12 @@ from jaxmpm.status import NONFINITE
 from jaxmpm.studies import machine
 
 from ._baselines import BASELINES, PROBLEM, layout
+from ._baselines_2d import (
+    BASELINES_ND,
+    PROBLEM_ND,
+    cells_of,  # noqa: F401  (the command line checks --sizes-2d/3d with it)
+    layout_nd,
+)
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 """The source checkout: ``benchmarks/`` and ``jaxmpm/`` beside each other."""
@@ -80,22 +89,28 @@ def available(code: str) -> bool:
 
 
 def _scene(n: int, dim: int = 1):
-    if dim == 2:  # a square of k x k cells, 2 x 2 particles each, on a unit square
-        k = round(math.sqrt(n // 4))
-        return jm.GasExpansion(cells=k, h=1.0 / k, pad=4, dim=2, **PROBLEM), 0.1 / (k * 600.0)
+    """The benchmark's scene of ``n`` particles in ``dim`` dimensions and its time step."""
+    if dim > 1:
+        # The unit square (cube) of k^dim cells, 2^dim particles each, at beta = 5 /s and
+        # dt = 0.1 h / (c0 + beta) (``_baselines_2d.PROBLEM_ND``): no particle enters a new cell
+        # within 100 steps, so SPQ runs healthy. At the 1D problem's beta = 200 /s a face of particles
+        # enters a new cell within 100 steps and SPQ breaks down (USL's small-mass breakdown).
+        L = layout_nd(n, dim)
+        scene = jm.GasExpansion(cells=L["cells"], h=L["h"], pad=L["pad"], dim=dim, **PROBLEM_ND)
+        return scene, L["dt"]
     L = layout(n)
     return jm.GasExpansion(cells=L["cells"], h=L["h"], pad=L["pad"], **PROBLEM), L["dt"]
 
 
 def jaxmpm_simulate(name: str, n: int, steps: int, dim: int = 1):
-    """One ``jm.simulate_timed`` of the benchmark's problem (in 2D: the gas expansion on a square, a
-    CFL number of about 0.1).
+    """One ``jm.simulate_timed`` of the benchmark's problem (in 2D and 3D: the gas expansion on a
+    unit square or cube at ``beta = 5 /s``, ``dt = 0.1 h / (c0 + beta)``; ``_baselines_2d.layout_nd``).
 
     Args:
         name: the interpolator (a key of ``jaxmpm.INTERPOLATORS``).
-        n: particles.
+        n: particles (in 2D and 3D ``(2 k)^dim``).
         steps: steps.
-        dim: 1 or 2.
+        dim: 1, 2 or 3.
 
     Returns:
         ``(compile_s, run_s, F_mean, status)``: compile time, run time, the mean final ``F`` and the
@@ -262,23 +277,27 @@ def copy_bandwidth(nbytes: int = 256 * 2**20) -> float:
     return 2 * nbytes / best
 
 
-def bandwidth_bound(bytes_per_s: float, dtype: str) -> float:
+def bandwidth_bound(bytes_per_s: float, dtype: str, dim: int = 1) -> float:
     """Million particle-steps per second a step cannot beat on this memory: ``PASSES`` passes over
     the particle state ``x, v, F`` (P2G reads it; G2P reads it again and writes it; the grid, about
-    0.6 nodes per particle with five fields, moves about one more pass).
+    0.6 nodes per particle with five fields in 1D, fewer nodes per particle in 2D and 3D, moves about
+    one more pass).
 
     Args:
         bytes_per_s: the memory bandwidth (``copy_bandwidth``).
         dtype: ``"f32"`` or ``"f64"``.
+        dim: 1, 2 or 3: a particle's state is ``2 dim + dim^2`` numbers.
 
     Returns:
         The bound, million particle-steps per second.
     """
     item = 4 if dtype == "f32" else 8
-    return bytes_per_s / (PASSES * 3 * item) / 1e6
+    return bytes_per_s / (PASSES * (2 * dim + dim * dim) * item) / 1e6
 
 
-def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, sizes_2d=()) -> dict:
+def worker(
+    dtype: str, sizes, steps: int, codes, interpolators, extras: bool, sizes_2d=(), sizes_3d=()
+) -> dict:
     """The benchmark of one float type: the body of its own process (see ``run``).
 
     As the benchmark's entry point it sets JAX's configuration: x64 on exactly for ``"f64"``, and
@@ -292,16 +311,18 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, si
         codes: among ``CODES``.
         interpolators: jaxmpm's interpolators (names in ``jaxmpm.INTERPOLATORS``).
         extras: also the reverse-mode (float64 only) and ensemble measurements.
-        sizes_2d: particle counts of jaxmpm's 2D runs.
+        sizes_2d: particle counts of the 2D runs (``4 k^2``), reference codes and jaxmpm alike.
+        sizes_3d: particle counts of the 3D runs (``8 k^3``).
 
     Returns:
-        ``rows`` (one per code and size), ``numpy_with_fold``, and with ``extras`` ``reverse`` and
+        ``rows`` (one per code, dimension and size, each with its ``dim``), ``numpy_with_fold``
+        (float64, with jaxmpm and NumPy among ``codes``), and with ``extras`` ``reverse`` and
         ``ensemble``.
     """
     jax.config.update("jax_enable_x64", dtype == "f64")
     rows = []
 
-    def add(code, n, n_steps, result):
+    def add(code, n, n_steps, result, dim=1):
         compile_s, run_s, F_mean = result[:3]
         # a reference code has no checks: a run that broke down shows as a non-finite F
         status = result[3] if len(result) > 3 else (0 if math.isfinite(F_mean) else NONFINITE)
@@ -316,6 +337,7 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, si
                 Mpsps=n * n_steps / run_s / 1e6,
                 F_mean=F_mean,
                 status=status,
+                dim=dim,
             )
         )
 
@@ -332,25 +354,32 @@ def worker(dtype: str, sizes, steps: int, codes, interpolators, extras: bool, si
         # What jaxmpm spq must reproduce (see agreement): in float64, where round-off stays small;
         # float32 runs of this problem part ways at the 1e-3 level whatever the code (see README).
         if "jaxmpm" in codes and "numpy" in codes and dtype == "f64":
-            folded[n] = BASELINES["NumPy"](n, n_steps, dtype, fold=True)[2]
+            folded[(1, n)] = BASELINES["NumPy"](n, n_steps, dtype, fold=True)[2]
         if "jaxmpm" in codes:
             for name in interpolators:
                 add(f"jaxmpm {name}", n, n_steps, jaxmpm_simulate(name, n, n_steps))
             for name in interpolators:
                 add(f"jaxmpm {name}, one step a call", n, n_steps, jaxmpm_step(name, n, n_steps))
             jax.clear_caches()
-    if "jaxmpm" in codes:  # 2D: jaxmpm alone (the reference codes are 1D)
-        for n in sizes_2d:
-            for name in interpolators:
-                add(
-                    f"jaxmpm {name} 2D",
-                    n,
-                    steps_for(n, steps),
-                    jaxmpm_simulate(name, n, steps_for(n, steps), dim=2),
-                )
+    for dim, dim_sizes in ((2, sizes_2d), (3, sizes_3d)):
+        for n in dim_sizes:
+            n_steps = steps_for(n, steps)
+            for code in ("numpy", "jax", "taichi", "warp"):
+                if code in codes and available(code):
+                    try:
+                        result = BASELINES_ND[_BASELINE_CODE[code]](n, n_steps, dtype, dim)
+                    except (ValueError, IndexError):  # NumPy's bincount meets the NaN of a breakdown
+                        result = (0.0, float("nan"), float("nan"))
+                    add(f"{_BASELINE_CODE[code]} {dim}D", n, n_steps, result, dim)
+            if "jaxmpm" in codes and "numpy" in codes and dtype == "f64":
+                folded[(dim, n)] = BASELINES_ND["NumPy"](n, n_steps, dtype, dim, fold=True)[2]
+            if "jaxmpm" in codes:
+                for name in interpolators:
+                    add(f"jaxmpm {name} {dim}D", n, n_steps, jaxmpm_simulate(name, n, n_steps, dim=dim), dim)
             jax.clear_caches()
     out = dict(
-        rows=rows, numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F) for n, F in folded.items()]
+        rows=rows,
+        numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F, dim=dim) for (dim, n), F in folded.items()],
     )
     if extras and "jaxmpm" in codes:
         if dtype == "f64":
@@ -369,6 +398,7 @@ def run(
     interpolators=tuple(jm.INTERPOLATORS),
     extras: bool = True,
     sizes_2d=(),
+    sizes_3d=(),
 ) -> dict:
     """Run the benchmark, one process per float type.
 
@@ -379,11 +409,13 @@ def run(
         codes: among ``CODES``.
         interpolators: jaxmpm's interpolators (names in ``jaxmpm.INTERPOLATORS``).
         extras: also the reverse-mode and ensemble measurements.
-        sizes_2d: particle counts of jaxmpm's 2D runs (``4 k^2``).
+        sizes_2d: particle counts of the 2D runs (``4 k^2``).
+        sizes_3d: particle counts of the 3D runs (``8 k^3``).
 
     Returns:
         The result: ``date``, ``machine``, ``versions``, ``copy_bandwidth_GBps``, the bandwidth
-        bounds, ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
+        bounds (``bandwidth_bound_Mpsps_<dtype>``, in 2D and 3D ``..._<dtype>_2d``, ``_3d``),
+        ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
 
     Raises:
         RuntimeError: a benchmark process failed (with the end of its stderr).
@@ -411,6 +443,7 @@ def run(
             interpolators=list(interpolators),
             extras=extras,
             sizes_2d=list(sizes_2d),
+            sizes_3d=list(sizes_3d),
         )
         cmd = [sys.executable, "-m", "benchmarks.bench", "--worker", json.dumps(spec)]
         path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
@@ -421,48 +454,60 @@ def run(
         for key in ("rows", "reverse", "ensemble", "numpy_with_fold"):
             result[key].extend(part.get(key, []))
         result[f"bandwidth_bound_Mpsps_{dtype}"] = bandwidth_bound(bw, dtype)
+        for dim, dim_sizes in ((2, sizes_2d), (3, sizes_3d)):
+            if dim_sizes:
+                result[f"bandwidth_bound_Mpsps_{dtype}_{dim}d"] = bandwidth_bound(bw, dtype, dim)
     result["agreement"] = agreement(result["rows"], result["numpy_with_fold"])
     return result
+
+
+def _suffix(dim: int) -> str:
+    """What follows a code's name in the rows of ``dim`` dimensions: nothing in 1D, `` 2D``, `` 3D``."""
+    return "" if dim == 1 else f" {dim}D"
 
 
 def agreement(rows, numpy_with_fold=()) -> dict:
     """Largest relative difference of the mean final F, per dtype: among the reference codes (one
     algorithm, so they agree to round-off and a wrong kernel shows), and of ``jaxmpm spq`` from the
     NumPy code with jaxmpm's fold of force off empty nodes (``numpy_spq(fold=True)``: the same
-    method exactly). ``jaxmpm spq`` against the reference codes' standard algorithm differs by
-    that fold, a real difference while the free end enters a new cell.
+    method exactly), each per dimension. In 1D, ``jaxmpm spq`` against the reference codes' standard
+    algorithm differs by that fold, a real difference while the free end enters a new cell. In 2D
+    and 3D the reference codes put a traction point's force on the nearest of the body's nodes,
+    which is what the fold does in that problem (``benchmarks._baselines_2d``).
 
     Args:
-        rows: the benchmark's rows.
-        numpy_with_fold: the mean final F of the NumPy code with the fold, per dtype and size.
+        rows: the benchmark's rows (a row without ``dim`` is 1D).
+        numpy_with_fold: the mean final F of the NumPy code with the fold, per dtype, size and
+            dimension (without ``dim``: 1D).
 
     Returns:
-        ``{dtype: {group: largest relative difference}}`` over the healthy runs.
+        ``{dtype: {group: largest relative difference}}`` over the healthy runs; the groups are
+        ``reference codes`` and ``jaxmpm spq vs NumPy with the fold`` (1D), ``reference codes 2D``
+        and ``jaxmpm spq 2D vs NumPy 2D with the fold``, and the same for 3D.
     """
     out = {}
     for dtype in sorted({r["dtype"] for r in rows}):
-        worst = {"reference codes": 0.0, "jaxmpm spq vs NumPy with the fold": 0.0}
-        seen = set()
-        for r in rows:
-            if r["dtype"] != dtype or r["status"] != 0:
-                continue
-            if r["code"] in _BASELINE_CODE.values():
-                group, refs = (
-                    "reference codes",
-                    [q for q in rows if q["code"] == "NumPy" and q["dtype"] == dtype],
-                )
-            elif r["code"].startswith("jaxmpm spq"):
-                group, refs = (
-                    "jaxmpm spq vs NumPy with the fold",
-                    [q for q in numpy_with_fold if q["dtype"] == dtype],
-                )
-            else:
-                continue
-            ref = next((q for q in refs if q["particles"] == r["particles"]), None)
-            if ref is not None and math.isfinite(ref["F_mean"]):
-                seen.add(group)
-                worst[group] = max(worst[group], abs(r["F_mean"] - ref["F_mean"]) / abs(ref["F_mean"]))
-        out[dtype] = {group: value for group, value in worst.items() if group in seen}
+        worst = {}
+        for dim in sorted({r.get("dim", 1) for r in rows if r["dtype"] == dtype}):
+            x = _suffix(dim)
+            reference = {c + x for c in _BASELINE_CODE.values()}
+            groups = (f"reference codes{x}", f"jaxmpm spq{x} vs NumPy{x} with the fold")
+            for r in rows:
+                if r["dtype"] != dtype or r.get("dim", 1) != dim or r["status"] != 0:
+                    continue
+                if r["code"] in reference:
+                    group = groups[0]
+                    refs = [q for q in rows if q["code"] == "NumPy" + x and q["dtype"] == dtype]
+                elif r["code"] == f"jaxmpm spq{x}" or (dim == 1 and r["code"].startswith("jaxmpm spq,")):
+                    group = groups[1]
+                    refs = [q for q in numpy_with_fold if q["dtype"] == dtype and q.get("dim", 1) == dim]
+                else:
+                    continue
+                ref = next((q for q in refs if q["particles"] == r["particles"]), None)
+                if ref is not None and math.isfinite(ref["F_mean"]):
+                    diff = abs(r["F_mean"] - ref["F_mean"]) / abs(ref["F_mean"])
+                    worst[group] = max(worst.get(group, 0.0), diff)
+        out[dtype] = worst
     return out
 
 
@@ -478,6 +523,42 @@ def _versions() -> dict:
     return out
 
 
+def _throughput_table(result: dict, dtype: str, dim: int) -> list[str]:
+    """The lines of the throughput table of one dtype and dimension (see ``table``)."""
+    x = _suffix(dim)
+    rows = [r for r in result["rows"] if r["dtype"] == dtype and r.get("dim", 1) == dim]
+    sizes = sorted({r["particles"] for r in rows})
+    title = dtype if dim == 1 else f"{dtype}, {dim}D"
+    lines = ["", f"{title}: million particle-steps per second (compile s in brackets)", ""]
+    lines.append("| code | " + " | ".join(f"{n:,}" for n in sizes) + " |")
+    lines.append("|---|" + "---|" * len(sizes))
+    for code in dict.fromkeys(r["code"] for r in rows):
+        cells = []
+        for n in sizes:
+            r = next((r for r in rows if r["code"] == code and r["particles"] == n), None)
+            if r is None:
+                cells.append("")
+                continue
+            flag = "" if r["status"] == 0 else f" status {r['status']}"
+            cells.append(f"{r['Mpsps']:.1f} ({r['compile_s']:.2f}){flag}")
+        lines.append(f"| {code} | " + " | ".join(cells) + " |")
+    ratio = []
+    for n in sizes:
+        at_n = [r for r in rows if r["particles"] == n and math.isfinite(r["Mpsps"])]
+        fast = [r["Mpsps"] for r in at_n if r["code"] in ("Taichi" + x, "Warp" + x)]
+        mine = [r["Mpsps"] for r in at_n if r["code"] == "jaxmpm spq" + x]
+        ratio.append(f"{mine[0] / max(fast):.2f}" if fast and mine else "")
+    if any(ratio):
+        lines.append("| jaxmpm spq / faster of Taichi, Warp | " + " | ".join(ratio) + " |")
+    bound = result.get(f"bandwidth_bound_Mpsps_{dtype}" + ("" if dim == 1 else f"_{dim}d"))
+    if bound:
+        lines.append(
+            f"| bandwidth bound ({result['copy_bandwidth_GBps']:.1f} GB/s copy, "
+            f"{PASSES} passes over x, v, F) | " + " | ".join(f"{bound:.0f}" for _ in sizes) + " |"
+        )
+    return lines
+
+
 def table(result: dict) -> str:
     """The result as markdown tables.
 
@@ -485,8 +566,8 @@ def table(result: dict) -> str:
         result: what ``run`` returns.
 
     Returns:
-        Million particle-steps per second (compile s) per code and size, per dtype, then the
-        reverse-mode, ensemble and agreement measurements.
+        Million particle-steps per second (compile s) per code and size, per dtype and dimension
+        (1D, then 2D, 3D), then the reverse-mode, ensemble and agreement measurements.
     """
     rows = result["rows"]
     lines = [
@@ -495,44 +576,8 @@ def table(result: dict) -> str:
         + "."
     ]
     for dtype in dict.fromkeys(r["dtype"] for r in rows):
-        sizes = sorted({r["particles"] for r in rows if r["dtype"] == dtype})
-        lines += ["", f"{dtype}: million particle-steps per second (compile s in brackets)", ""]
-        lines.append("| code | " + " | ".join(f"{n:,}" for n in sizes) + " |")
-        lines.append("|---|" + "---|" * len(sizes))
-        for code in dict.fromkeys(r["code"] for r in rows if r["dtype"] == dtype):
-            cells = []
-            for n in sizes:
-                r = next(
-                    (r for r in rows if r["code"] == code and r["dtype"] == dtype and r["particles"] == n),
-                    None,
-                )
-                if r is None:
-                    cells.append("")
-                    continue
-                flag = "" if r["status"] == 0 else f" status {r['status']}"
-                cells.append(f"{r['Mpsps']:.1f} ({r['compile_s']:.2f}){flag}")
-            lines.append(f"| {code} | " + " | ".join(cells) + " |")
-        ratio = []
-        for n in sizes:
-            fast = [
-                r["Mpsps"]
-                for r in rows
-                if r["dtype"] == dtype and r["particles"] == n and r["code"] in ("Taichi", "Warp")
-            ]
-            mine = [
-                r["Mpsps"]
-                for r in rows
-                if r["dtype"] == dtype and r["particles"] == n and r["code"] == "jaxmpm spq"
-            ]
-            ratio.append(f"{mine[0] / max(fast):.2f}" if fast and mine else "")
-        if any(ratio):
-            lines.append("| jaxmpm spq / faster of Taichi, Warp | " + " | ".join(ratio) + " |")
-        bound = result.get(f"bandwidth_bound_Mpsps_{dtype}")
-        if bound:
-            lines.append(
-                f"| bandwidth bound ({result['copy_bandwidth_GBps']:.1f} GB/s copy, "
-                f"{PASSES} passes over x, v, F) | " + " | ".join(f"{bound:.0f}" for _ in sizes) + " |"
-            )
+        for dim in sorted({r.get("dim", 1) for r in rows if r["dtype"] == dtype}):
+            lines += _throughput_table(result, dtype, dim)
     if result.get("reverse"):
         lines += [
             "",
@@ -611,6 +656,7 @@ if __name__ == "__main__":  # the per-dtype worker process of ``run``
                     spec["interpolators"],
                     spec["extras"],
                     spec.get("sizes_2d", ()),
+                    spec.get("sizes_3d", ()),
                 )
             )
         )

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 import jaxmpm as jm
-from benchmarks import _baselines, bench
+from benchmarks import _baselines, _baselines_2d, bench
 from jaxmpm import cli
 from jaxmpm import status as st_bits
+from jaxmpm._step import fold_massless
 from jaxmpm._util import contract
 
 pytestmark = pytest.mark.slow
@@ -86,6 +87,69 @@ def test_jaxmpm_runs_the_reference_codes_problem():
     assert abs(standard - folded) > 1e-6  # so the check above can tell the two apart
 
 
+@pytest.mark.parametrize("dim, n", [(2, 256), (3, 512)])
+def test_reference_codes_nd_agree_with_jaxmpm_in_float64(dim, n):
+    """In 2D and 3D the reference codes (NumPy, plain JAX; Taichi and Warp where installed) and
+    ``jaxmpm spq`` run one method: their mean final F agree to round-off, and so do the NumPy code's
+    two treatments of the traction points' force off the body's nodes (onto the nearest body node,
+    and jaxmpm's fold). (Taichi runs one float type per process: this process's is float64.)"""
+    steps = 20
+    optional = [code for code in ("Taichi", "Warp") if importlib.util.find_spec(code.lower())]
+    codes = ["NumPy", "plain JAX"] + optional
+    results = {code: _baselines_2d.BASELINES_ND[code](n, steps, "f64", dim)[2] for code in codes}
+    folded = _baselines_2d.numpy_spq_nd(n, steps, "f64", dim, fold=True)[2]
+    _, _, mine, status = bench.jaxmpm_simulate("spq", n, steps, dim=dim)
+    ref = results["NumPy"]
+    assert status == 0
+    assert abs(ref - 1.0 / dim) > 1e-4  # the mean of F = f I is f / dim: the body did expand
+    for code, value in results.items():
+        assert value == pytest.approx(ref, rel=1e-13), code
+    assert folded == pytest.approx(ref, rel=1e-13)
+    assert mine == pytest.approx(folded, rel=1e-13)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_fold_port_is_jaxmpms_fold(dim):
+    """``fold_massless_nd`` (NumPy) moves force off empty nodes exactly as jaxmpm's step does, on
+    random masks (diagonal-only neighbours included), and on the box of nodes a body of cells fills
+    it equals clamping each node into the box, which the reference codes do."""
+    rng = np.random.default_rng(dim)
+    axes = (7,) * dim
+    f = rng.normal(size=(7**dim, dim))
+    for density in (0.2, 0.5):
+        mask = rng.random(7**dim) < density
+        mine = _baselines_2d.fold_massless_nd(f, mask, axes)
+        theirs = np.asarray(fold_massless(jnp.asarray(f), jnp.asarray(mask), axes))
+        np.testing.assert_allclose(mine, theirs, rtol=1e-14, atol=1e-14)
+        assert not np.allclose(mine, f)  # force did move
+    lo, hi = 2, 4  # the body's nodes: 2..4 along each axis
+    idx = _baselines_2d._lattice(axes)
+    box = ((idx >= lo) & (idx <= hi)).all(1)
+    ring = ((idx >= lo - 1) & (idx <= hi + 1)).all(1)  # force within one node of the box
+    g = np.where(ring[:, None], f, 0.0)
+    clamped = np.zeros_like(g)
+    to = np.ravel_multi_index(tuple(np.clip(idx, lo, hi).T), axes)
+    np.add.at(clamped, to, g)
+    np.testing.assert_allclose(_baselines_2d.fold_massless_nd(g, box, axes), clamped, rtol=1e-13, atol=1e-13)
+
+
+def test_layout_nd_and_cells_of():
+    assert _baselines_2d.cells_of(102_400, 2) == 160
+    assert _baselines_2d.cells_of(110_592, 3) == 24
+    assert _baselines_2d.cells_of(100, 2) == 5
+    assert _baselines_2d.cells_of(50, 2) is None
+    assert _baselines_2d.cells_of(100, 3) is None
+    L = _baselines_2d.layout_nd(256, 2)
+    assert (L["cells"], L["axis_nodes"], L["nodes"]) == (8, 17, 17**2)
+    X = _baselines_2d.initial_particles(L, np.float64)
+    scene, dt = bench._scene(256, 2)
+    body = scene.body()
+    np.testing.assert_array_equal(X, np.asarray(body.X))
+    assert (scene.cells, float(scene.h), float(scene.beta), dt) == (8, L["h"], 5.0, L["dt"])
+    with pytest.raises(ValueError, match="not \\(2 k\\)"):
+        _baselines_2d.layout_nd(50, 2)
+
+
 def test_no_recompilation_across_parameter_values():
     scene = jm.GasExpansion(cells=16, h=1.0 / 16, pad=8)
     jm.simulate(scene, jm.CPDI(), dt=1e-6, steps=5)
@@ -138,17 +202,30 @@ def test_bench_command_json_and_files(tmp_path, capsys):
         "jaxmpm mpq",
         "jaxmpm spq, one step a call",
         "jaxmpm mpq, one step a call",
+        "NumPy 2D",
+        "plain JAX 2D",
         "jaxmpm spq 2D",
         "jaxmpm mpq 2D",
     }
     for r in out["rows"]:
         sizes = (16, 64) if r["code"].endswith("2D") else (200, 400)
+        assert r["dim"] == (2 if r["code"].endswith("2D") else 1)
         assert r["particles"] in sizes and r["steps"] == 5 and r["dtype"] == "f64"
         assert r["Mpsps"] > 0 and r["run_s"] > 0 and r["status"] == 0
+        assert r["compile_s"] > 0 or r["code"].startswith("NumPy")
     assert out["agreement"]["f64"]["reference codes"] < 1e-13
     assert out["agreement"]["f64"]["jaxmpm spq vs NumPy with the fold"] < 1e-13
+    assert out["agreement"]["f64"]["reference codes 2D"] < 1e-13
+    assert out["agreement"]["f64"]["jaxmpm spq 2D vs NumPy 2D with the fold"] < 1e-13
+    assert {(q["dim"], q["particles"]) for q in out["numpy_with_fold"]} == {
+        (1, 200),
+        (1, 400),
+        (2, 16),
+        (2, 64),
+    }
     assert (tmp_path / "bench.csv").read_text().startswith("code,dtype,particles,steps")
-    assert "| plain JAX |" in (tmp_path / "bench.md").read_text()
+    md = (tmp_path / "bench.md").read_text()
+    assert "| plain JAX |" in md and "| plain JAX 2D |" in md and "f64, 2D: million" in md
 
 
 @pytest.mark.parametrize(
@@ -162,12 +239,100 @@ def test_bench_command_json_and_files(tmp_path, capsys):
         (["--interpolators", "sph"], "--interpolators"),
         (["--sizes-2d", "50"], "--sizes-2d"),
         (["--sizes-2d", "4x"], "--sizes-2d"),
+        (["--sizes-3d", "100"], "--sizes-3d"),
+        (["--sizes-3d", "64,8y"], "--sizes-3d"),
+        (["--codes", "numpy,taichi2d"], "--codes"),
     ],
 )
 def test_bench_command_rejects_bad_input(argv, named, capsys):
     assert cli.main(["bench", *argv]) == 2
     err = capsys.readouterr().err
     assert named in err and err.count("\n") == 1
+
+
+def test_bench_command_passes_codes_and_sizes_of_every_dim(monkeypatch, capsys):
+    """``--codes`` names the codes for every dimension; ``--sizes-2d`` and ``--sizes-3d`` reach the
+    benchmark as particle counts (the run itself replaced by a recorder)."""
+    seen = {}
+
+    def record(sizes, steps, dtypes, codes, interpolators, extras, sizes_2d, sizes_3d):
+        seen.update(sizes=sizes, codes=codes, sizes_2d=sizes_2d, sizes_3d=sizes_3d, extras=extras)
+        return dict(date="now", machine="here", versions={}, rows=[], agreement={})
+
+    monkeypatch.setattr(bench, "run", record)
+    argv = ["bench", "--sizes", "200", "--codes", "warp,numpy,jaxmpm", "--sizes-3d", "64,512", "--no-extras"]
+    assert cli.main(argv) == 0
+    assert seen == dict(
+        sizes=[200],
+        codes=["warp", "numpy", "jaxmpm"],
+        sizes_2d=[16384, 102400],
+        sizes_3d=[64, 512],
+        extras=False,
+    )
+    assert cli.main(["bench", "--sizes", "200", "--sizes-2d", "", "--no-extras"]) == 0
+    assert seen["codes"] == list(bench.CODES) and seen["sizes_2d"] == [] and seen["sizes_3d"] == []
+    capsys.readouterr()
+
+
+def test_worker_runs_the_3d_codes_and_keeps_dims_apart():
+    """The worker's 3D rows are the reference codes and jaxmpm in 3D, each with ``dim`` 3, and the
+    agreement is reported per dimension (a 1D and a 3D run of the same particle count stay apart)."""
+    out = bench.worker("f64", [64], 3, ["numpy", "jax", "jaxmpm"], ["spq"], extras=False, sizes_3d=[64])
+    rows = {(r["code"], r["dim"]) for r in out["rows"]}
+    assert {
+        ("NumPy 3D", 3),
+        ("plain JAX 3D", 3),
+        ("jaxmpm spq 3D", 3),
+        ("NumPy", 1),
+        ("jaxmpm spq", 1),
+    } <= rows
+    assert all(r["status"] == 0 and r["particles"] == 64 for r in out["rows"])
+    agree = bench.agreement(out["rows"], out["numpy_with_fold"])["f64"]
+    assert set(agree) == {
+        "reference codes",
+        "jaxmpm spq vs NumPy with the fold",
+        "reference codes 3D",
+        "jaxmpm spq 3D vs NumPy 3D with the fold",
+    }
+    assert max(agree.values()) < 1e-13
+
+
+def test_table_has_a_ratio_row_per_dimension():
+    def row(code, dim, Mpsps, n=1024):
+        return dict(
+            code=code,
+            dtype="f32",
+            particles=n,
+            steps=10,
+            compile_s=0.5,
+            run_s=1.0,
+            Mpsps=Mpsps,
+            F_mean=0.5,
+            status=0,
+            dim=dim,
+        )
+
+    result = dict(
+        date="now",
+        machine="here",
+        versions={},
+        copy_bandwidth_GBps=10.0,
+        rows=[
+            row("Taichi", 1, 10.0, 1000),
+            row("jaxmpm spq", 1, 5.0, 1000),
+            row("Taichi 2D", 2, 4.0),
+            row("Warp 2D", 2, 8.0),
+            row("jaxmpm spq 2D", 2, 6.0),
+            row("jaxmpm mpq 2D", 2, 2.0),
+        ],
+        agreement={"f32": {"reference codes 2D": 1e-7}},
+    )
+    text = bench.table(result)
+    one, two = text.split("f32, 2D: million particle-steps per second")
+    assert "| jaxmpm spq / faster of Taichi, Warp | 0.50 |" in one
+    assert "| jaxmpm spq / faster of Taichi, Warp | 0.75 |" in two  # 6 / max(4, 8)
+    assert "| jaxmpm mpq 2D | 2.0 (0.50) |" in two and "Warp 2D" not in one
+    assert "reference codes 2D 1.0e-07" in text
 
 
 def test_a_reference_code_that_breaks_down_is_reported(monkeypatch):

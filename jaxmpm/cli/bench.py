@@ -5,7 +5,6 @@ beside the package; they are not installed. This command finds them there.
 """
 
 import importlib
-import math
 import pathlib
 import sys
 
@@ -31,12 +30,19 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "--sizes-2d",
         default="16384,102400",
-        help="particle counts of jaxmpm's 2D runs (4 k^2: k^2 cells of 2 x 2), comma-separated; '' for none",
+        help="particle counts of the 2D runs (4 k^2: k^2 cells of 2 x 2), comma-separated; '' for none",
+    )
+    p.add_argument(
+        "--sizes-3d",
+        default="",
+        help="particle counts of the 3D runs (8 k^3: k^3 cells of 2 x 2 x 2), comma-separated; "
+        "'' (the default) for none",
     )
     p.add_argument("--dtypes", default="f32,f64", help="f32, f64 or both (each in its own process)")
     p.add_argument(
         "--codes",
-        help="among numpy, jax (plain JAX), taichi, warp (when installed: pip install jaxmpm[bench]), jaxmpm",
+        help="among numpy, jax (plain JAX), taichi, warp (when installed: pip install jaxmpm[bench]), "
+        "jaxmpm, comma-separated; each runs in every dimension asked for (--sizes, --sizes-2d, --sizes-3d)",
     )
     p.add_argument("--interpolators", help="jaxmpm's, comma-separated")
     p.add_argument("--no-extras", action="store_true", help="skip the reverse-mode and ensemble measurements")
@@ -69,6 +75,33 @@ def benchmark():
     return module
 
 
+def _sizes_nd(text: str, dim: int, cells_of) -> list[int]:
+    """The particle counts of ``--sizes-2d`` or ``--sizes-3d``: ``(2 k)^dim`` each.
+
+    Args:
+        text: the option's value, comma-separated integers ('' for none).
+        dim: 2 or 3.
+        cells_of: ``(n, dim) -> k``, or ``None`` where ``n`` is not ``(2 k)^dim`` (the benchmark's).
+
+    Returns:
+        The counts.
+
+    Raises:
+        UsageError: not integers, or not ``(2 k)^dim``.
+    """
+    option = f"--sizes-{dim}d"
+    try:
+        sizes = [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise UsageError(f"{option} must be comma-separated integers, got {text!r}") from None
+    if any(cells_of(n, dim) is None for n in sizes):
+        shape = "a square of k x k cells, 2 x 2" if dim == 2 else "a cube of k x k x k cells, 2 x 2 x 2"
+        raise UsageError(
+            f"{option} must be particle counts {2**dim} k^{dim} ({shape} particles each), got {text!r}"
+        )
+    return sizes
+
+
 def command(args) -> int:
     """Check the options, run the benchmark (one process per float type) and print or write its tables.
 
@@ -90,15 +123,8 @@ def command(args) -> int:
         raise UsageError(f"--sizes must be even particle counts >= 2 (two per cell), got {args.sizes!r}")
     if args.steps < 2:
         raise UsageError(f"--steps must be an integer >= 2, got {args.steps}")
-    try:
-        sizes_2d = [int(t) for t in args.sizes_2d.split(",") if t.strip()]
-    except ValueError:
-        raise UsageError(f"--sizes-2d must be comma-separated integers, got {args.sizes_2d!r}") from None
-    if any(n < 4 or n % 4 or round(math.sqrt(n // 4)) ** 2 != n // 4 for n in sizes_2d):
-        raise UsageError(
-            f"--sizes-2d must be particle counts 4 k^2 (a square of k x k cells, 2 x 2 particles each), "
-            f"got {args.sizes_2d!r}"
-        )
+    sizes_2d = _sizes_nd(args.sizes_2d, 2, bench.cells_of)
+    sizes_3d = _sizes_nd(args.sizes_3d, 3, bench.cells_of)
     dtypes = _assign.choices(args.dtypes, "--dtypes", ("f32", "f64"))
     codes = list(bench.CODES) if args.codes is None else _assign.choices(args.codes, "--codes", bench.CODES)
     interps = (
@@ -113,7 +139,14 @@ def command(args) -> int:
             file=sys.stderr,
         )
     result = bench.run(
-        sizes, args.steps, dtypes, codes, interps, extras=not args.no_extras, sizes_2d=sizes_2d
+        sizes,
+        args.steps,
+        dtypes,
+        codes,
+        interps,
+        extras=not args.no_extras,
+        sizes_2d=sizes_2d,
+        sizes_3d=sizes_3d,
     )
     if args.out:
         paths = bench.write(result, args.out)
