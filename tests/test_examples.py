@@ -68,6 +68,7 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm study stability --out": "the full stability map",
     "jaxmpm study multid --out": "the full 2D and 3D study",
     "jaxmpm study detonation --out": "the full detonation study",
+    "jaxmpm study blast --out": "the full blast study",
     "python:docs/detonation.md": "the Gurney slab to 30 us, and a fit of the products to a plate's velocity",
     "jaxmpm bench --out": "the full benchmark",
     "jaxmpm run axis-aligned dim=3": "a 3D run of 4,096 particles: its compilation",

@@ -13,6 +13,7 @@ STUDIES = {
     "stability": "stability",
     "multid": "multid",
     "detonation": "detonation",
+    "blast": "blast",
 }
 """The name on the command line of each study, and its module in ``jaxmpm.studies``."""
 
@@ -37,7 +38,8 @@ def add_parser(subparsers) -> None:
         "ladder; work-precision: error against run time; stability: the stiff and extreme map; multid: 2D "
         "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run); detonation: "
         "the planar detonation's F by interpolator, its convergence behind the front and the peak pressure "
-        "against P_CJ by burn model",
+        "against P_CJ by burn model; blast: the 2D disk and 3D sphere gas charges against their radial "
+        "reference by interpolator and remedy (breakdowns, errors, smoothness) and the refined best CPDI",
     )
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")

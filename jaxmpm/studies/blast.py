@@ -1,0 +1,662 @@
+"""The round gas charges against their 1D radial reference: how far each interpolator and remedy runs,
+and how smooth and how accurate it stays.
+
+The scenes are ``jaxmpm.BlastDisk`` (2D, a quarter with symmetry planes) at pressure ratios 1.5, 10
+and 100 (``P0 = ratio p_atm``, ``p_atm`` = 1 bar, 1.5 kg/m^3 of gas, gamma 1.4, radius 0.5 m) and
+``jaxmpm.BlastSphere`` (3D, an octant) at 10. Every run goes to two sound transits of the radius,
+``2 radius / c0``, with ``cfl`` 0.3, two particles per cell and axis, 32 cells across the radius of
+the disk and 16 of the sphere. The configurations are every interpolator of ``jaxmpm.INTERPOLATORS``
+plain (FLIP, USL, no remedy), and CPDI and MPQ with each remedy: MUSL, APIC, J-bar
+(``volume_average="node"``), a shear viscosity (``c_shear`` 0.5, no bulk terms) and APIC with that
+shear viscosity.
+
+Each run is measured at its final state against the reference (``scene.reference``) at that time, at
+every particle's reference radius ``R``: the radial velocity's relative L1 error ``sum |v_r - v_ref| /
+sum |v_ref|`` and the density's, the outer ring's radius error (the particles within 0.6 h of the
+charge's surface, ``max |r / r_ref - 1|``), the angular spread of ``v_r`` (``jaxmpm.metrics.
+angular_spread``, detrended, one bin per cell, its max), the largest spurious rotation
+(``spurious_rotation``) and the folded domains (``folded_domains``). A run that breaks down stops at its
+last good state: it is reported as broken down, with when (a fraction of two transits) and why
+(``jaxmpm.status.describe``), and its measures are those of that state, marked so.
+
+Then the best CPDI configuration at 10:1, APIC with shear viscosity 0.5, refined (16, 32 and 64 cells
+across the radius) for the observed order of its errors.
+
+``jaxmpm study blast --out DIR`` writes ``table.md``, ``blast.json`` and the figures
+``radial_velocity.png`` and ``domains.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import time
+
+import jax
+import numpy as np
+
+import jaxmpm as jm
+from jaxmpm import metrics
+
+from ._runtime import machine, require_float64
+
+CFL = 0.3
+"""The Courant number of every run."""
+P_ATM = 1.0e5
+"""The atmosphere's pressure (Pa); the charge is at ``ratio P_ATM``."""
+TRANSITS = 2.0
+"""Every run's end time, in sound transits of the radius."""
+RING = 0.6
+"""The outer ring: the particles whose reference radius is within ``RING h`` of the charge's surface."""
+SHEAR = 0.5
+"""The shear viscosity's coefficient (``ArtificialViscosity.c_shear``) of the remedies that have one."""
+REMEDIES = {
+    "plain": dict(),
+    "MUSL": dict(ordering="musl"),
+    "APIC": dict(transfer="apic"),
+    "J-bar": dict(volume_average="node"),
+    f"shear {SHEAR:g}": dict(shear=SHEAR),
+    f"APIC + shear {SHEAR:g}": dict(transfer="apic", shear=SHEAR),
+}
+"""Each remedy's settings: ``transfer`` (a key of ``jaxmpm.TRANSFERS``, default FLIP), ``ordering``
+(default USL), ``volume_average`` (J-bar) and ``shear`` (``c_shear`` of a viscosity without bulk terms)."""
+REMEDIED = ("cpdi", "mpq")
+"""The interpolators run with every remedy (the others plain only)."""
+BEST = ("cpdi", f"APIC + shear {SHEAR:g}")
+"""The configuration refined."""
+PAD_RADII = {("disk", 1.5): 2.5, ("disk", 10.0): 2.5, ("disk", 100.0): 6.0, ("sphere", 10.0): 2.0}
+"""The grid beyond the charge, in radii, of each scene: the reference's free surface reaches 1.26, 3.0
+and 4.9 radii for the disk at 1.5, 10 and 100 by two transits, and 2.3 for the sphere at 10. The grid
+ends at ``1 + pad`` radii: a particle that runs that far ahead stops the run (``LEFT_GRID``)."""
+FULL = dict(
+    cases=(("disk", 1.5, 32), ("disk", 10.0, 32), ("disk", 100.0, 32), ("sphere", 10.0, 16)),
+    configs=None,
+    refinement=(16, 32, 64),
+)
+SMALL = dict(
+    cases=(("disk", 10.0, 8),),
+    configs=(("spq", "plain"), ("cpdi", "plain"), BEST, ("mpq", "plain"), ("mpq", BEST[1])),
+    refinement=(4, 8),
+)
+MEASURES = ("v_r_L1", "rho_L1", "ring_radius_error", "spread_max", "rotation_max", "folded")
+"""The numbers of a row, all measured at the run's final state (its last good one after a breakdown)."""
+
+
+def configurations(small: bool = False) -> tuple[tuple[str, str], ...]:
+    """The study's configurations, ``(interpolator, remedy)``.
+
+    Args:
+        small: the reduced set (SPQ and CPDI plain, MPQ plain, CPDI and MPQ with APIC and shear).
+
+    Returns:
+        Every interpolator of ``jaxmpm.INTERPOLATORS`` plain, then CPDI and MPQ with each remedy of
+        ``REMEDIES`` (the full study); ``SMALL["configs"]`` (the reduced one).
+    """
+    if small:
+        return SMALL["configs"]
+    out = [(name, "plain") for name in jm.INTERPOLATORS]
+    out += [(name, remedy) for name in REMEDIED for remedy in REMEDIES if remedy != "plain"]
+    return tuple(out)
+
+
+def settings(small: bool = False) -> dict:
+    """The study's sizes.
+
+    Args:
+        small: the reduced version (the disk at 10:1 only, 8 cells across the radius, five
+            configurations, refinement at 4 and 8 cells).
+
+    Returns:
+        ``dict(cases, configs, refinement)``: the scenes as ``(kind, ratio, cells)`` (kind ``"disk"`` or
+        ``"sphere"``, cells across the radius), the configurations (``configurations``) and the cells of
+        the refinement of ``BEST`` (on the disk at 10:1).
+    """
+    out = dict(SMALL if small else FULL)
+    out["configs"] = configurations(small)
+    return out
+
+
+def make_scene(kind: str, ratio: float, cells: int):
+    """The charge of the study.
+
+    Args:
+        kind: ``"disk"`` (``BlastDisk``) or ``"sphere"`` (``BlastSphere``).
+        ratio: ``P0 / p_atm``.
+        cells: cells across the radius.
+
+    Returns:
+        The scene, two particles per cell and axis, its grid ``PAD_RADII`` radii beyond the charge.
+    """
+    cls = jm.BlastDisk if kind == "disk" else jm.BlastSphere
+    pad = int(round(PAD_RADII[(kind, float(ratio))] * cells))
+    return cls(P0=ratio * P_ATM, p_atm=P_ATM, cells=cells, ppc=2, pad=pad)
+
+
+def max_steps(cells: int) -> int:
+    """The scan's bound: ten times the steps of two transits at the charge's initial sound speed.
+
+    The free surface moves at a few times ``c0``, which shortens the step: the runs that ran through
+    took 2 times the estimate at 10:1 and 3.4 times at 100:1 (measured at 32 cells). A run that needs
+    more than the bound stops with ``MAX_STEPS``, reported as a breakdown. One bound per resolution,
+    so that the scenes of equal size share a compiled program.
+
+    Args:
+        cells: cells across the radius.
+
+    Returns:
+        ``10 TRANSITS cells / CFL``.
+    """
+    return int(math.ceil(10.0 * TRANSITS * cells / CFL))
+
+
+def run_options(remedy: str) -> dict:
+    """The keyword arguments of ``jaxmpm.simulate`` for a remedy.
+
+    Args:
+        remedy: a key of ``REMEDIES``.
+
+    Returns:
+        ``transfer``, ``ordering``, ``volume_average`` and ``viscosity``.
+    """
+    r = REMEDIES[remedy]
+    shear = r.get("shear")
+    return dict(
+        transfer=jm.TRANSFERS[r.get("transfer", "flip")](),
+        ordering=r.get("ordering", "usl"),
+        volume_average=r.get("volume_average"),
+        viscosity=None if shear is None else jm.ArtificialViscosity(c_quad=0.0, c_lin=0.0, c_shear=shear),
+    )
+
+
+def _finite(x) -> float | None:
+    """A finite float, or ``None`` (JSON has no NaN)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+class References:
+    """The radial references of the study's charges, solved once per charge and time."""
+
+    def __init__(self):
+        self._done: dict = {}
+
+    def __call__(self, scene, t: float):
+        """The reference of ``scene`` at time ``t``.
+
+        Args:
+            scene: the charge.
+            t: the time (> 0).
+
+        Returns:
+            The ``RadialSolution`` at ``[t]``.
+        """
+        key = (scene.dim, float(scene.P0), float(f"{t:.12g}"))
+        if key not in self._done:
+            self._done[key] = scene.reference(np.array([t]))
+        return self._done[key]
+
+
+def measure(scene, sol, reference) -> dict:
+    """A run's measures at its final state against the reference at that time.
+
+    Args:
+        scene: the charge.
+        sol: the run's ``Solution`` (its last good state after a breakdown).
+        reference: the ``RadialSolution`` at the state's time.
+
+    Returns:
+        ``MEASURES`` (``None`` for a relative error whose reference is zero, at ``t = 0``), and the
+        profile ``R``, ``v_r``, the domains' ``corners`` and the reference's ``R_line``, ``v_line`` and
+        ``r_free`` for the figures.
+    """
+    st, body = sol.state, sol.body
+    centre = scene.centre
+    R = np.asarray(metrics.reference_radius(body, centre))
+    at = reference.at(R)
+    v_ref, rho_ref, r_ref = (np.asarray(at[k][0]) for k in ("v", "rho", "r"))
+    v_r = np.asarray(metrics.radial_velocity(st, body, centre))
+    rho = np.asarray(metrics.density(st, body))
+    r = np.linalg.norm(np.asarray(st.x) - np.asarray(centre)[None, :], axis=1)
+    ring = R > float(scene.radius) - RING * float(scene.h)
+    spread = metrics.angular_spread(st, body, centre, bins=scene.cells, detrend=True)
+    corners = metrics.domain_corners(st, body)
+    v_norm = np.sum(np.abs(v_ref))
+    R_line = np.linspace(0.0, float(scene.radius), 401)
+    return dict(
+        v_r_L1=_finite(np.sum(np.abs(v_r - v_ref)) / v_norm) if v_norm > 0 else None,
+        rho_L1=_finite(np.sum(np.abs(rho - rho_ref)) / np.sum(np.abs(rho_ref))),
+        ring_radius_error=_finite(np.max(np.abs(r[ring] / r_ref[ring] - 1.0))),
+        spread_max=_finite(spread["max"]),
+        rotation_max=_finite(metrics.spurious_rotation(st, body)["max"]),
+        folded=int(metrics.folded_domains(corners, body)),
+        profile=dict(
+            R=R,
+            v_r=v_r,
+            corners=np.asarray(corners),
+            R_line=R_line,
+            v_line=np.asarray(reference.at(R_line)["v"][0]),
+            r_free=float(reference.r_free[0]),
+        ),
+    )
+
+
+def run_row(kind: str, ratio: float, cells: int, interpolator: str, remedy: str, refs: References) -> dict:
+    """One run to two transits and its measures.
+
+    Args:
+        kind: ``"disk"`` or ``"sphere"``.
+        ratio: ``P0 / p_atm``.
+        cells: cells across the radius.
+        interpolator: a key of ``jaxmpm.INTERPOLATORS``.
+        remedy: a key of ``REMEDIES``.
+        refs: the references (filled).
+
+    Returns:
+        The row: the scene (``kind``, ``dim``, ``ratio``, ``cells``, ``pad``, ``particles``), the
+        configuration, ``steps``, ``t``, ``fraction`` (of two transits), ``status`` (the bitmask, 0 for a
+        run that ran through), ``finished``, ``failure`` (``Solution.failure``, with the fraction, or
+        ``None``), ``measured_at`` (``"end"`` or ``"last good state"``), the numbers of ``MEASURES``, the
+        wall time (compile included) and ``profile`` (``measure``'s, for the figures).
+    """
+    scene = make_scene(kind, ratio, cells)
+    t_end = TRANSITS * float(scene.transit_time)
+    t0 = time.perf_counter()
+    sol = jm.simulate(
+        scene,
+        jm.INTERPOLATORS[interpolator](),
+        t_end=t_end,
+        cfl=CFL,
+        max_steps=max_steps(cells),
+        throw=False,
+        **run_options(remedy),
+    )
+    jax.block_until_ready(sol.state)
+    wall = time.perf_counter() - t0
+    st = sol.state
+    t = float(st.t)
+    fail = sol.failure()
+    if fail is not None:
+        fail = dict(fail, fraction=t / t_end)
+    row = dict(
+        kind=kind,
+        dim=scene.dim,
+        ratio=float(ratio),
+        cells=cells,
+        pad=scene.pad,
+        particles=int(sol.body.n),
+        interpolator=interpolator,
+        remedy=remedy,
+        steps=int(st.step),
+        t=t,
+        t_end=t_end,
+        fraction=t / t_end,
+        status=int(st.status),
+        finished=fail is None,
+        failure=fail,
+        measured_at="end" if fail is None else "last good state",
+    )
+    row.update(measure(scene, sol, refs(scene, t)))
+    row["wall_s"] = wall
+    return row
+
+
+def scene_info(kind: str, ratio: float, cells: int, refs: References) -> dict:
+    """A scene's sizes and its reference's free surface at two transits.
+
+    Args:
+        kind: ``"disk"`` or ``"sphere"``.
+        ratio: ``P0 / p_atm``.
+        cells: cells across the radius.
+        refs: the references (filled).
+
+    Returns:
+        ``kind``, ``ratio``, ``cells``, ``pad``, ``t_end``, ``c0``, ``grid_radii`` (the grid's extent
+        over the radius) and ``r_free_radii`` (the reference's free surface at ``t_end`` over the radius).
+    """
+    scene = make_scene(kind, ratio, cells)
+    t_end = TRANSITS * float(scene.transit_time)
+    radius = float(scene.radius)
+    return dict(
+        kind=kind,
+        ratio=float(ratio),
+        cells=cells,
+        pad=scene.pad,
+        t_end=t_end,
+        c0=float(scene.c0),
+        grid_radii=(cells + scene.pad) * float(scene.h) / radius,
+        r_free_radii=float(refs(scene, t_end).r_free[0]) / radius,
+    )
+
+
+def observed_orders(h, e) -> tuple[float | None, list[float | None]]:
+    """Observed orders of ``e`` against ``h``.
+
+    Args:
+        h: the grid spacings, coarse to fine.
+        e: the errors (``None`` for one not usable: left out).
+
+    Returns:
+        ``(fit, pairs)``: the least-squares slope of ``log e`` on ``log h`` (``None`` with fewer than two
+        usable errors) and the order of each successive pair (``None`` where either is not usable).
+    """
+    h = np.asarray(h, dtype=float)
+    e = np.asarray([np.nan if v is None else v for v in e], dtype=float)
+    ok = np.isfinite(e) & (e > 0)
+    fit = float(np.polyfit(np.log(h[ok]), np.log(e[ok]), 1)[0]) if ok.sum() >= 2 else None
+    pairs = [
+        float(np.log(e[k] / e[k + 1]) / np.log(h[k] / h[k + 1])) if ok[k] and ok[k + 1] else None
+        for k in range(len(e) - 1)
+    ]
+    return fit, pairs
+
+
+def refinement(cells_list, rows: list[dict], refs: References) -> dict:
+    """``BEST`` on the disk at 10:1, refined.
+
+    Args:
+        cells_list: cells across the radius, coarse to fine.
+        rows: the study's rows (a run already done is reused).
+        refs: the references (filled).
+
+    Returns:
+        ``dict(rows, orders)``: one row per resolution (``run_row``'s) and, per measure of ``v_r_L1``,
+        ``rho_L1`` and ``ring_radius_error``, ``{measure}_order_fit`` and ``{measure}_order_pairs``
+        over the runs that ran through.
+    """
+    out = []
+    for cells in cells_list:
+        done = [
+            r
+            for r in rows
+            if (r["kind"], r["ratio"], r["cells"], r["interpolator"], r["remedy"])
+            == ("disk", 10.0, cells, *BEST)
+        ]
+        out.append(done[0] if done else run_row("disk", 10.0, cells, *BEST, refs))
+    h = [1.0 / r["cells"] for r in out]
+    orders = {}
+    for q in ("v_r_L1", "rho_L1", "ring_radius_error"):
+        orders[f"{q}_order_fit"], orders[f"{q}_order_pairs"] = observed_orders(
+            h, [r[q] if r["finished"] else None for r in out]
+        )
+    return dict(rows=out, orders=orders)
+
+
+def best(rows: list[dict], interpolator: str, kind: str = "disk", ratio: float = 10.0) -> dict | None:
+    """The best configuration of an interpolator on a scene: one that ran through with the smallest
+    ``v_r`` L1 error, else the one that broke down latest.
+
+    Args:
+        rows: the study's rows.
+        interpolator: the interpolator.
+        kind: the scene's kind.
+        ratio: its pressure ratio.
+
+    Returns:
+        The row, or ``None`` where the interpolator has none on that scene.
+    """
+    mine = [r for r in rows if (r["interpolator"], r["kind"], r["ratio"]) == (interpolator, kind, ratio)]
+    if not mine:
+        return None
+
+    def key(r):
+        err = r["v_r_L1"] if r["v_r_L1"] is not None else math.inf
+        return (not r["finished"], -r["fraction"], err)
+
+    return min(mine, key=key)
+
+
+def _num(x, fmt: str = ".3f") -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def short_failure(fail: dict) -> str:
+    """A breakdown in a few words: when (a fraction of two transits) and what failed.
+
+    Args:
+        fail: a row's ``failure``.
+
+    Returns:
+        E.g. ``"broken down at 0.89 (step 380): F <= 0"``.
+    """
+    what = ", ".join(q.split(" (")[0] for q in fail["quantities"])
+    return f"broken down at {fail['fraction']:.2f} (step {fail['step']}): {what}"
+
+
+def status_cell(r: dict) -> str:
+    """A row's status in the table: ``ran through``, or ``**broken down** ...`` (``short_failure``).
+
+    Args:
+        r: a row.
+
+    Returns:
+        The cell's text.
+    """
+    return "ran through" if r["finished"] else "**" + short_failure(r["failure"]) + "**"
+
+
+def _measure_cell(r: dict, key: str, fmt: str) -> str:
+    """A measure; a broken-down run's (of its last good state) in italics with a dagger."""
+    text = _num(r[key], fmt) if key != "folded" else str(r[key])
+    return text if r["finished"] or text == "-" else f"*{text}*&dagger;"
+
+
+def _title(kind: str, ratio: float) -> str:
+    return f"{'Disk (2D quarter)' if kind == 'disk' else 'Sphere (3D octant)'} at {ratio:g}:1"
+
+
+def _markdown(result: dict) -> str:
+    rows, info = result["rows"], result["scenes"]
+    lines = [
+        "# Round gas charges against the radial reference: jaxmpm study blast",
+        "",
+        f"Gas (gamma 1.4, 1.5 kg/m^3) at P0 = ratio x {P_ATM / 1e5:g} bar in a charge of radius 0.5 m, "
+        f"expanding against {P_ATM / 1e5:g} bar, to {TRANSITS:g} sound transits of the radius "
+        f"(2 radius / c0), CFL {CFL:g}, 2 particles per cell and axis. Plain is FLIP with USL and no "
+        f'remedy; J-bar is `volume_average="node"`; shear {SHEAR:g} is `ArtificialViscosity(c_quad=0, '
+        f"c_lin=0, c_shear={SHEAR:g})`. Measures at the final state against the 1D radial reference "
+        "(`scene.reference`, 1600 cells, with its viscosity) at that time, at each particle's reference "
+        "radius R: v_r and rho L1 are relative L1 errors (sum |f - f_ref| / sum |f_ref| over the "
+        f"particles); ring is the outer ring's (R within {RING:g} h of the surface) largest relative "
+        "radius error; spread is the largest detrended angular spread of v_r (one bin per cell); "
+        "rotation is the largest spurious rotation angle (rad); folded counts folded or inverted "
+        "particle domains.",
+        "",
+        "A run that broke down is marked **broken down**, with when (the fraction of two transits it "
+        "reached) and what failed; its measures (in italics, &dagger;) are those of its last good state, "
+        "not of two transits, and are not comparable with those of the runs that ran through. The wall "
+        "time includes compiling for the first run of each program only: the disk at 10:1 reuses the "
+        "programs of the disk at 1.5:1 (the same sizes), and a run that breaks down early stops early.",
+    ]
+    for s in info:
+        mine = [r for r in rows if (r["kind"], r["ratio"]) == (s["kind"], s["ratio"])]
+        lines += [
+            "",
+            f"## {_title(s['kind'], s['ratio'])}, {s['cells']} cells across the radius",
+            "",
+            f"{mine[0]['particles']} particles; c0 = {s['c0']:.0f} m/s, two transits = "
+            f"{s['t_end'] * 1e3:.4g} ms; the reference's free surface is at {s['r_free_radii']:.2f} radii "
+            f"then, the grid reaches {s['grid_radii']:.2f} radii.",
+            "",
+            "| interpolator | remedy | status | v_r L1 | rho L1 | ring r error | spread | rotation (rad) "
+            "| folded | steps taken | wall s |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in mine:
+            lines.append(
+                f"| {r['interpolator']} | {r['remedy']} | {status_cell(r)} "
+                f"| {_measure_cell(r, 'v_r_L1', '.3f')} | {_measure_cell(r, 'rho_L1', '.3f')} "
+                f"| {_measure_cell(r, 'ring_radius_error', '.3f')} | {_measure_cell(r, 'spread_max', '.3f')} "
+                f"| {_measure_cell(r, 'rotation_max', '.3f')} | {_measure_cell(r, 'folded', '')} "
+                f"| {r['steps']} | {r['wall_s']:.1f} |"
+            )
+    ref = result["refinement"]
+    o = ref["orders"]
+    lines += [
+        "",
+        f"## Refinement: {BEST[0]} {BEST[1]}, disk at 10:1",
+        "",
+        "Observed orders against h = radius / cells: the order of each successive pair on the finer row, "
+        "and the least-squares fit over the runs that ran through.",
+        "",
+        "| cells | particles | status | v_r L1 | order | rho L1 | order | ring r error | order | steps taken "
+        "| wall s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for k, r in enumerate(ref["rows"]):
+        pair = {
+            q: (None if k == 0 else o[f"{q}_order_pairs"][k - 1])
+            for q in ("v_r_L1", "rho_L1", "ring_radius_error")
+        }
+        lines.append(
+            f"| {r['cells']} | {r['particles']} | {status_cell(r)} | {_measure_cell(r, 'v_r_L1', '.4f')} "
+            f"| {_num(pair['v_r_L1'], '.2f')} | {_measure_cell(r, 'rho_L1', '.4f')} "
+            f"| {_num(pair['rho_L1'], '.2f')} | {_measure_cell(r, 'ring_radius_error', '.4f')} "
+            f"| {_num(pair['ring_radius_error'], '.2f')} | {r['steps']} | {r['wall_s']:.1f} |"
+        )
+    lines += [
+        "",
+        f"Fitted orders: v_r L1 {_num(o['v_r_L1_order_fit'], '.2f')}, "
+        f"rho L1 {_num(o['rho_L1_order_fit'], '.2f')}, "
+        f"ring radius {_num(o['ring_radius_error_order_fit'], '.2f')}.",
+    ]
+    figs = result["figures"]
+    lines += ["", "Figures (disk at 10:1, the best configuration of each interpolator):", ""]
+    for name, f in figs.items():
+        lines.append(f"- {name}: {f['remedy']} ({status_cell(f)})")
+    lines += ["", f"Machine: {result['machine']}; total {result['wall_s']:.0f} s.", ""]
+    return "\n".join(lines)
+
+
+def _save(fig, path: pathlib.Path) -> pathlib.Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    return path
+
+
+def _panel_title(r: dict) -> str:
+    when = (
+        f"t = {r['t'] * 1e3:.3g} ms (2 transits)"
+        if r["finished"]
+        else f"broke down at {r['fraction']:.2f} of 2 transits: last good state, t = {r['t'] * 1e3:.3g} ms"
+    )
+    return f"{r['interpolator'].upper()} {r['remedy']}\n{when}"
+
+
+def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
+    from matplotlib.collections import PolyCollection
+
+    from ..plotting import figure
+
+    chosen = [r for r in result["figure_rows"] if r is not None]
+    paths = []
+    fig = figure(figsize=(5.0 * len(chosen), 4.0))
+    axes = fig.subplots(1, len(chosen), squeeze=False)[0]
+    for ax, r in zip(axes, chosen):
+        p = r["profile"]
+        radius = p["R_line"][-1]
+        ax.plot(p["R"] / radius, p["v_r"], ".", ms=2.0, color="tab:blue", label="particles")
+        ax.plot(p["R_line"] / radius, p["v_line"], "k-", lw=1.0, label="1D radial reference")
+        ax.set_xlabel("reference radius R / radius")
+        ax.set_ylabel("radial velocity v_r (m/s)")
+        ax.set_title(_panel_title(r), fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Disk at 10:1: radial velocity against reference radius")
+    paths.append(_save(fig, outdir / "radial_velocity.png"))
+
+    fig = figure(figsize=(5.0 * len(chosen), 5.0))
+    axes = fig.subplots(1, len(chosen), squeeze=False)[0]
+    around = [0, 1, 3, 2]  # corners (-,-), (-,+), (+,+), (+,-): around the quadrilateral
+    for ax, r in zip(axes, chosen):
+        p = r["profile"]
+        ax.add_collection(
+            PolyCollection(
+                p["corners"][:, around, :], facecolors="tab:blue", edgecolors="k", linewidths=0.2, alpha=0.35
+            )
+        )
+        theta = np.linspace(0.0, 0.5 * np.pi, 200)
+        ax.plot(
+            p["r_free"] * np.cos(theta),
+            p["r_free"] * np.sin(theta),
+            "r--",
+            lw=1.0,
+            label="reference free surface",
+        )
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_title(_panel_title(r) + f", {r['folded']} folded", fontsize=9)
+        ax.legend(fontsize=8, loc="upper right")
+    fig.suptitle(
+        "Disk at 10:1 (quarter, symmetry planes at x = 0 and y = 0): particle domains at the end\n"
+        "(a run that broke down: at its last good state)"
+    )
+    paths.append(_save(fig, outdir / "domains.png"))
+    return paths
+
+
+def _jsonable(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "profile"} for r in rows]
+
+
+def main(out: str, small: bool = False) -> dict:
+    """Run the study; write ``table.md``, ``blast.json``, ``radial_velocity.png`` and ``domains.png`` to
+    ``out``.
+
+    Needs float64 on (``jaxmpm study`` switches it on).
+
+    Args:
+        out: the output directory (created).
+        small: the reduced version (``settings(small=True)``; well under a minute).
+
+    Returns:
+        ``settings``, ``scenes`` (``scene_info`` of each case), ``rows`` (one per case and
+        configuration, ``run_row``'s), ``refinement`` (rows and orders), ``figure_rows`` (the best CPDI
+        and MPQ rows at 10:1, ``best``), ``figures`` (their configurations), ``machine`` and ``wall_s``.
+
+    Raises:
+        RuntimeError: float64 is off.
+    """
+    require_float64("blast")
+    t0 = time.perf_counter()
+    outdir = pathlib.Path(out)
+    outdir.mkdir(parents=True, exist_ok=True)
+    cfg = settings(small)
+    refs = References()
+    rows = []
+    for kind, ratio, cells in cfg["cases"]:
+        for interpolator, remedy in cfg["configs"]:
+            rows.append(run_row(kind, ratio, cells, interpolator, remedy, refs))
+            r = rows[-1]
+            print(
+                f"{kind} {ratio:g}:1 {cells} cells, {interpolator} {remedy}: {status_cell(r)}; v_r L1 "
+                f"{_num(r['v_r_L1'])}, {r['wall_s']:.1f} s",
+                flush=True,
+            )
+    figure_rows = [best(rows, name) for name in REMEDIED]
+    result = dict(
+        settings=dict(cfg, small=small, cfl=CFL, p_atm=P_ATM, transits=TRANSITS, shear=SHEAR),
+        scenes=[scene_info(kind, ratio, cells, refs) for kind, ratio, cells in cfg["cases"]],
+        rows=rows,
+        refinement=refinement(cfg["refinement"], rows, refs),
+        figure_rows=figure_rows,
+        figures={
+            r["interpolator"]: dict(remedy=r["remedy"], finished=r["finished"], failure=r["failure"])
+            for r in figure_rows
+            if r is not None
+        },
+        machine=machine(),
+    )
+    result["wall_s"] = time.perf_counter() - t0
+    text = _markdown(result)
+    (outdir / "table.md").write_text(text)
+    saved = {k: v for k, v in result.items() if k != "figure_rows"}
+    saved["rows"] = _jsonable(rows)
+    saved["refinement"] = dict(result["refinement"], rows=_jsonable(result["refinement"]["rows"]))
+    (outdir / "blast.json").write_text(json.dumps(saved, indent=1, default=str, allow_nan=False))
+    paths = _figures(result, outdir)
+    print(text)
+    print("wrote " + ", ".join(str(p) for p in [outdir / "table.md", outdir / "blast.json", *paths]))
+    return result

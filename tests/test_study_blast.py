@@ -1,0 +1,53 @@
+"""The blast study at its small size (the disk at 10:1, 8 cells across the radius): its files, its table
+and what it says. Bounds are the measured values with margin."""
+
+import json
+
+import pytest
+
+import jaxmpm as jm
+from jaxmpm.studies import blast
+
+pytestmark = pytest.mark.slow
+
+
+def test_study_blast_small(tmp_path, capsys):
+    """Measured at 8 cells: CPDI with APIC and shear 0.5 runs through with a v_r L1 error of 0.1015
+    (ring radius error 0.0073, 0 folded); SPQ plain breaks down at 0.31 of two transits (non-finite
+    state, F <= 0). The refinement 4 -> 8 cells gives a v_r L1 order of 0.61."""
+    result = blast.main(out=str(tmp_path), small=True)
+    capsys.readouterr()
+    assert (tmp_path / "table.md").stat().st_size > 1000 and (tmp_path / "blast.json").stat().st_size > 1000
+    for name in ("radial_velocity.png", "domains.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+    saved = json.loads((tmp_path / "blast.json").read_text())
+    configs = blast.configurations(small=True)
+    assert [(r["interpolator"], r["remedy"]) for r in saved["rows"]] == list(configs)
+    assert all((r["kind"], r["ratio"], r["cells"]) == ("disk", 10.0, 8) for r in saved["rows"])
+
+    text = (tmp_path / "table.md").read_text()
+    lines = text.splitlines()
+    for r in result["rows"]:
+        (row,) = [x for x in lines if x.startswith(f"| {r['interpolator']} | {r['remedy']} | ")]
+        if r["finished"]:
+            assert r["status"] == 0 and r["failure"] is None and "| ran through |" in row
+            assert r["measured_at"] == "end" and r["fraction"] == pytest.approx(1.0)
+        else:  # broken down: said so, when and why, and its measures marked as its last good state's
+            assert r["status"] != 0 and r["measured_at"] == "last good state" and r["fraction"] < 1.0
+            assert r["failure"]["quantities"] == jm.status.describe(r["status"])
+            assert f"**broken down at {r['failure']['fraction']:.2f} (step {r['failure']['step']}): " in row
+            assert "ran through" not in row and "&dagger;" in row
+    broken = {(r["interpolator"], r["remedy"]) for r in result["rows"] if not r["finished"]}
+    assert ("spq", "plain") in broken
+
+    best = next(r for r in result["rows"] if (r["interpolator"], r["remedy"]) == blast.BEST)
+    assert best["status"] == 0 and best["finished"]
+    assert best["v_r_L1"] < 0.15  # measured 0.1015
+    assert best["ring_radius_error"] < 0.011 and best["folded"] == 0  # measured 0.0073, 0
+    assert result["figures"]["cpdi"]["remedy"] == blast.BEST[1]
+
+    ref = saved["refinement"]
+    assert [r["cells"] for r in ref["rows"]] == [4, 8] and all(r["finished"] for r in ref["rows"])
+    assert ref["rows"][1]["v_r_L1"] == best["v_r_L1"]  # the table's run, reused
+    assert 0.3 < ref["orders"]["v_r_L1_order_fit"] < 1.0  # measured 0.61
+    assert "## Refinement: cpdi APIC + shear 0.5" in text and "Fitted orders: v_r L1 " in text
