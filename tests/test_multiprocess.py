@@ -80,20 +80,16 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_two_processes_equal_one(tmp_path):
-    script = tmp_path / "worker.py"
-    script.write_text(WORKER)
+def _two_processes(command):
+    """Run ``command(0)`` and ``command(1)`` together, 2 forced host devices each; no progress bars.
+
+    Returns:
+        The processes and their ``(stdout, stderr)``; a process still running at the end is killed.
+    """
     flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
-    env = dict(os.environ, XLA_FLAGS=flags.strip())
-    port = str(_free_port())
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAXMPM_PROGRESS="0")
     procs = [
-        subprocess.Popen(
-            [sys.executable, str(script), str(i), port, str(tmp_path)],
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        subprocess.Popen(command(i), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for i in range(2)
     ]
     try:
@@ -103,6 +99,14 @@ def test_two_processes_equal_one(tmp_path):
             if p.poll() is None:
                 p.kill()
                 p.communicate()
+    return procs, outs
+
+
+def test_two_processes_equal_one(tmp_path):
+    script = tmp_path / "worker.py"
+    script.write_text(WORKER)
+    port = str(_free_port())
+    procs, outs = _two_processes(lambda i: [sys.executable, str(script), str(i), port, str(tmp_path)])
     for p, (_, err) in zip(procs, outs):
         assert p.returncode == 0, err[-3000:]
     a, b = (json.loads(out.strip().splitlines()[-1]) for out, _ in outs)
@@ -144,29 +148,15 @@ def test_command_line_run_over_two_processes(tmp_path, capsys):
     nothing; the report equals one process's to round-off."""
     from jaxmpm.cli import main
 
-    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
-    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAXMPM_PROGRESS="0")
     port = str(_free_port())
     run = ["run", "gas-slab", "cells=30", "h=0.0333333333", "pad=60", "--interpolator", "cpdi"]
     run += ["--dt", "5e-6", "--steps", "20", "--json"]
-    procs = [
-        subprocess.Popen(
+    procs, outs = _two_processes(
+        lambda i: (
             [sys.executable, "-m", "jaxmpm.cli", *run, "--out", str(tmp_path / "run.npz"), "--chunk", "8"]
-            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)],
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
+            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
         )
-        for i in range(2)
-    ]
-    try:
-        outs = [p.communicate(timeout=600) for p in procs]
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.communicate()
+    )
     assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
     assert outs[1] == ("", "")  # the second process says nothing
     many = json.loads(outs[0][0])
