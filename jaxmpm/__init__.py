@@ -59,6 +59,9 @@ from .materials import (
     MIE_GRUNEISEN as MIE_GRUNEISEN,
 )
 from .materials import (
+    STRENGTH as STRENGTH,
+)
+from .materials import (
     AbstractEOS as AbstractEOS,
 )
 from .materials import (
@@ -69,6 +72,9 @@ from .materials import (
 )
 from .materials import (
     AdiabaticGas as AdiabaticGas,
+)
+from .materials import (
+    ElasticPlastic as ElasticPlastic,
 )
 from .materials import (
     IdealGas as IdealGas,
@@ -103,6 +109,7 @@ from .scenes import Bodies as Bodies
 from .scenes import Detonation as Detonation
 from .scenes import GasExpansion as GasExpansion
 from .scenes import GasSlab as GasSlab
+from .scenes import GurneyCylinder as GurneyCylinder
 from .scenes import GurneySlab as GurneySlab
 from .scenes import Interface as Interface
 from .scenes import Manufactured as Manufactured

@@ -15,6 +15,7 @@ so the compiled step holds only what the scene and the run declared.
 
 import functools
 import operator
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -30,7 +31,7 @@ from .explosives import ProgrammedBurn
 from .grid import Grid
 from .interpolators import AbstractInterpolator
 from .interpolators._transfer import any_axis, points_stencil
-from .materials import AbstractEOS, AbstractMaterial
+from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
 from .particles import Body, State
 from .regions import Layout, Region
 from .scenes import AbstractScene
@@ -285,12 +286,13 @@ def _check_detonators(scene: AbstractScene) -> None:
                 )
 
 
-class _Group(eqx.Module):
-    """The particles of one material: the material, its reference density and which particles."""
+class _Group(NamedTuple):
+    """The particles of one material: the material, its reference density and which particles (a
+    slice, static indices, or ``None`` for all)."""
 
     material: AbstractMaterial | AbstractEOS
     rho0: Float[Array, ""]
-    index: slice | np.ndarray | None = eqx.field(static=True)
+    index: slice | np.ndarray | None
 
 
 def _groups(model: Model, setup: Setup) -> list[_Group]:
@@ -446,7 +448,10 @@ def _initial_regions(model: Model, setup: Setup, F):
                 internal[k] = internal[k].at[g.index].set(val.astype(dtype))
         rho = g.rho0 / det(F_g)
         p = jax.vmap(g.material.pressure)(rho, _take(e, g.index), z)
-        sig.append(_eos_stress(p, dim, dtype))
+        s_g = _eos_stress(p, dim, dtype)
+        if isinstance(g.material, ElasticPlastic):
+            s_g = s_g + jax.vmap(functools.partial(g.material.stress_of, dim=dim))(z)
+        sig.append(s_g)
     return _assemble(sig, groups, n), e, internal
 
 
@@ -456,7 +461,8 @@ def _particle_corners(state: State, body: Body):
 
 def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]:
     """Each particle's wave speed; the stored stress stands in for work on ``F`` when it is the
-    material's alone (no viscous part)."""
+    material's alone (no viscous part). An ``ElasticPlastic`` material's is the longitudinal elastic
+    wave's, ``sqrt(c_eos^2 + 4 G / (3 rho))``."""
     groups = _groups(model, setup)
     out = []
     for g in groups:
@@ -465,6 +471,8 @@ def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]
             keys = _internal_keys(g.material, F.shape[-1], F.dtype)
             z = _subset(state.internal, keys, g.index)
             c = jax.vmap(g.material.sound_speed)(g.rho0 / det(F), _take(state.e, g.index), z)
+            if isinstance(g.material, ElasticPlastic):  # the longitudinal elastic wave
+                c = jnp.sqrt(c * c + 4.0 * g.material.G / (3.0 * (g.rho0 / det(F))))
             front = g.material.front_speed()
             if front is not None:  # a programmed detonation: its front moves at least this fast
                 c = jnp.maximum(c, front)
@@ -741,7 +749,10 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all
 
     solved for ``e_new`` exactly (``p_new = a + b e_new`` is affine in it), and gives
     ``sigma = -(p_new + q) I``. ``q`` is the artificial viscosity, with the sound speed at the new
-    density and the old energy.
+    density and the old energy. An ``ElasticPlastic`` material then advances its deviatoric stress
+    ``s`` (``ElasticPlastic.deviatoric``), adds it, ``sigma = -(p_new + q) I + s``, and adds its work
+    ``dt (s + s_new) / 2 : D / rho_new`` to ``e`` before the solve (Wilkins' convention: ``e`` holds
+    the elastic strain energy and the plastic work).
 
     Returns ``(sigma, e, internal, tension)``: ``tension`` marks the burnt particles of a programmed
     burn whose products' own pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (``None`` without
@@ -771,6 +782,9 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all
         z_new = jax.vmap(mat.update_internal, in_axes=(0, 0, None, None, 0, 0))(
             z_old, X_g, state.t, dt, J_old, J_new
         )
+        plastic = isinstance(mat, ElasticPlastic)
+        if plastic:  # the deviatoric stress and its power per unit volume
+            z_new, s_dev, s_power = jax.vmap(mat.deviatoric, in_axes=(0, 0, 0, None))(z_new, F_old, F_g, dt)
         e_old = _take(state.e, g.index)
         rho_old, rho_new = g.rho0 / J_old, g.rho0 / J_new
         p_old = jax.vmap(mat.pressure)(rho_old, e_old, z_old)
@@ -785,8 +799,12 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all
         if shear:  # the shear viscosity's stress, and its work as heat
             s_visc, power = model.viscosity.shear_stress(F_old, F_g, dt, rho_new, c, h)
             e_start = e_old + dt * power
+        if plastic:  # the deviatoric work
+            e_start = e_start + dt * s_power / rho_new
         e_g = (e_start - (0.5 * p_old + q + 0.5 * a) * dJ) / (1.0 + 0.5 * b * dJ)
         s_g = _eos_stress(a + b * e_g + q, dim, dtype)
+        if plastic:
+            s_g = s_g + s_dev
         sig.append(s_g + s_visc if shear else s_g)
         energies.append(e_g)
         if isinstance(mat, ProgrammedBurn):

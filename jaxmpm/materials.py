@@ -442,3 +442,144 @@ MIE_GRUNEISEN: dict[str, dict[str, float]] = {
 """Mie-Grueneisen constants (SI: kg/m^3, m/s) of OFHC copper, 4340 steel and 6061-T6 aluminium, from
 Steinberg, "Equation of state and strength properties of selected materials", LLNL report
 UCRL-MA-106439 (1991, change 1 1996). ``MieGruneisen(**MIE_GRUNEISEN["copper"])``."""
+
+
+DEVIATORIC_KEYS: tuple[str, ...] = ("s_xx", "s_yy", "s_zz", "s_xy", "s_xz", "s_yz")
+"""The internal variables of an ``ElasticPlastic`` particle: the six components of its symmetric
+deviatoric Cauchy stress (3x3 in every dimension: 1D is uniaxial strain, 2D plane strain)."""
+
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # (row, column) of each of DEVIATORIC_KEYS
+
+
+class ElasticPlastic(AbstractEOS):
+    """An EOS with strength: elastic-perfectly-plastic deviatoric stress on top of a pressure.
+
+    The Cauchy stress is ``sigma = -(p + q) I + s``: ``p`` from ``eos`` (an ``AbstractStatelessEOS``,
+    e.g. ``MieGruneisen``), ``q`` the artificial viscosity, and ``s`` the deviatoric stress, carried
+    per particle as six internal variables (``DEVIATORIC_KEYS``, 3x3 in every dimension). The step
+    advances ``s`` with ``deviatoric`` in the hydrocode form of Wilkins, "Calculation of
+    elastic-plastic flow", Methods in Computational Physics 3 (1964): a hypoelastic Jaumann-rate
+    update ``ds/dt = 2 G dev(D) + W s - s W``, then a radial return to the von Mises yield surface
+    ``sqrt(3/2 s:s) = Y``. The deviatoric work is added to the internal energy ``e`` (all of it: ``e``
+    holds the elastic strain energy and the plastic work, as in Wilkins' scheme), so kinetic plus
+    internal energy is conserved.
+    The longitudinal wave speed ``sqrt(c_eos^2 + 4 G / (3 rho))`` bounds the stable step.
+
+    ``STRENGTH`` holds ``G`` and ``Y`` of the metals of ``MIE_GRUNEISEN``:
+    ``ElasticPlastic(MieGruneisen(**MIE_GRUNEISEN["copper"]), **STRENGTH["copper"])``.
+
+    Attributes:
+        eos: the pressure, an ``AbstractStatelessEOS``.
+        G: shear modulus (> 0).
+        Y: von Mises yield stress (>= 0; 0 is a fluid, ``s = 0``).
+    """
+
+    eos: AbstractEOS  # an AbstractStatelessEOS: checked below, with a message that names it
+    G: Float[Array, ""] = eqx.field(converter=as_float)
+    Y: Float[Array, ""] = eqx.field(converter=as_float)
+
+    def __check_init__(self):
+        if not isinstance(self.eos, AbstractStatelessEOS):
+            raise ValueError(
+                f"eos must be an AbstractStatelessEOS (a pressure without internal variables, e.g. "
+                f"MieGruneisen), got {type(self.eos).__name__}"
+            )
+        check_positive("G", self.G)
+        check_nonnegative("Y", self.Y)
+
+    def pressure_terms(self, rho, z):
+        del z  # the deviatoric stress does not enter the pressure
+        return self.eos.pressure_terms(rho, None)
+
+    def initial_internal(self, X):
+        return {k: jnp.zeros((), dtype=X.dtype) for k in DEVIATORIC_KEYS}
+
+    def update_internal(self, z, X, t, dt, J_old, J_new):
+        del X, t, dt, J_old, J_new  # the deviatoric stress needs F: the step calls ``deviatoric``
+        return z
+
+    def front_speed(self):
+        return None
+
+    def deviatoric(
+        self,
+        z: dict[str, Array],
+        F_old: Float[Array, "dim dim"],
+        F_new: Float[Array, "dim dim"],
+        dt: Float[Array, ""],
+    ) -> tuple[dict[str, Array], Float[Array, "dim dim"], Float[Array, ""]]:
+        """One particle's deviatoric stress after a step from ``F_old`` to ``F_new`` (Wilkins 1964).
+
+        With the velocity gradient ``L = (F_new F_old^-1 - I) / dt`` (embedded in 3x3, zero outside the
+        ``dim x dim`` block), ``D = sym(L)`` and ``W = skew(L)``, the trial stress is the Jaumann-rate
+        update ``s* = s + dt (2 G dev(D) + W s - s W)`` (``dev`` over 3x3), and the radial return
+        ``s_new = s* min(1, Y / q*)``, ``q* = sqrt(3/2 s*:s*)``, puts it on the yield surface where it
+        lies outside. Where ``q* = 0`` the values and their derivatives are finite.
+
+        Args:
+            z: the particle's internal variables (``DEVIATORIC_KEYS``).
+            F_old: deformation gradient before the step.
+            F_new: deformation gradient after it.
+            dt: the step.
+
+        Returns:
+            ``(z_new, s, power)``: the new internal variables, the ``dim x dim`` block of ``s_new``, and
+            the deviatoric stress power per unit current volume over the step, ``(s + s_new) / 2 : D``.
+        """
+        dim = F_new.shape[-1]
+        dtype = F_new.dtype
+        eye3 = jnp.eye(3, dtype=dtype)
+        L_dim = (F_new @ jnp.linalg.inv(F_old) - jnp.eye(dim, dtype=dtype)) / dt
+        L = jnp.zeros((3, 3), dtype=dtype).at[:dim, :dim].set(L_dim)
+        D = 0.5 * (L + L.T)
+        W = 0.5 * (L - L.T)
+        s = self._tensor(z)
+        dev_D = D - (jnp.trace(D) / 3.0) * eye3
+        trial = s + dt * (2.0 * self.G * dev_D + W @ s - s @ W)
+        q2 = 1.5 * jnp.sum(trial * trial)
+        pos = q2 > 0.0
+        q = jnp.where(pos, jnp.sqrt(jnp.where(pos, q2, 1.0)), 0.0)
+        over = q > self.Y  # (then q > 0)
+        s_new = trial * jnp.where(over, self.Y / jnp.where(over, q, 1.0), 1.0)
+        power = 0.5 * jnp.sum((s + s_new) * D)
+        z_new = {k: s_new[i, j] for k, (i, j) in zip(DEVIATORIC_KEYS, _PAIRS)}
+        return z_new, s_new[:dim, :dim], power
+
+    def stress_of(self, z: dict[str, Array], dim: int) -> Float[Array, "dim dim"]:
+        """The deviatoric stress that one particle's internal variables hold, as the step adds it to
+        ``-(p + q) I``.
+
+        Args:
+            z: the particle's internal variables (``DEVIATORIC_KEYS``).
+            dim: the dimension of the run (static).
+
+        Returns:
+            The ``dim x dim`` block of the 3x3 deviatoric stress.
+        """
+        return self._tensor(z)[:dim, :dim]
+
+    def _tensor(self, z):
+        """The symmetric 3x3 deviatoric stress of the internal variables."""
+        s_xx, s_yy, s_zz, s_xy, s_xz, s_yz = (z[k] for k in DEVIATORIC_KEYS)
+        return jnp.stack(
+            [
+                jnp.stack([s_xx, s_xy, s_xz]),
+                jnp.stack([s_xy, s_yy, s_yz]),
+                jnp.stack([s_xz, s_yz, s_zz]),
+            ]
+        )
+
+
+STRENGTH: dict[str, dict[str, float]] = {
+    "copper": dict(G=46e9, Y=90e6),
+    "steel-4340": dict(G=77.5e9, Y=792e6),
+    "al-6061": dict(G=26e9, Y=324e6),
+}
+"""Shear modulus ``G`` and yield stress ``Y`` (Pa) of OFHC copper, 4340 steel and 6061-T6 aluminium,
+the metals of ``MIE_GRUNEISEN``, for ``ElasticPlastic``. ``Y`` is the Johnson-Cook ``A``, the yield
+stress at zero plastic strain: copper's and 4340 steel's from Johnson & Cook, "A constitutive model and
+data for metals subjected to large strains, high strain rates and high temperatures", 7th International
+Symposium on Ballistics (1983); 6061-T6's from Lesuer, Kay & LeBlanc, "Modeling large-strain,
+high-rate deformation in metals", LLNL report UCRL-JC-134118 (2001). ``G`` of 4340 steel from ``E =
+200 GPa`` and ``nu = 0.29``. ``ElasticPlastic(MieGruneisen(**MIE_GRUNEISEN["copper"]),
+**STRENGTH["copper"])``."""

@@ -69,6 +69,7 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm study multid --out": "the full 2D and 3D study",
     "jaxmpm study detonation --out": "the full detonation study",
     "jaxmpm study blast --out": "the full blast study",
+    "jaxmpm study gurney --out": "the full Gurney cylinder study",
     "python:docs/detonation.md": "the Gurney slab to 30 us, and a fit of the products to a plate's velocity",
     "jaxmpm bench --out": "the full benchmark",
     "jaxmpm bench --sizes 8000 --sizes-2d 102400": "the 2D and 3D benchmark (minutes)",

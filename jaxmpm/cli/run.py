@@ -360,12 +360,18 @@ def report(
         err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where)
     diag = jm.diagnostics(scene, st, sol.body)
     params = scene.parameter_values()
-    plate = None
-    if isinstance(scene, (jm.Detonation, jm.GurneySlab)):
+    plate = ring = None
+    if isinstance(scene, (jm.Detonation, jm.scenes.AbstractGurney)):
         params["cj"] = {k: float(v) for k, v in scene.cj().items()}
     if isinstance(scene, jm.GurneySlab):  # the plate's velocity, and Gurney's estimate of where it tends
         plate = dict(
             velocity=float(scene.plate_velocity(st, sol.body)), gurney=float(scene.gurney_velocity())
+        )
+    if isinstance(scene, jm.GurneyCylinder):  # the ring's radial velocity and mean radius, and Gurney's
+        ring = dict(
+            velocity=float(scene.ring_velocity(st, sol.body)),
+            radius=float(scene.ring_radius(st, sol.body)),
+            gurney=float(scene.gurney_velocity()),
         )
     if scene.dim == 1:
         particles = dict(
@@ -399,6 +405,7 @@ def report(
             params=params,
             **({"regions": _regions(scene)} if scene.regions is not None else {}),
             **({"plate": plate} if plate is not None else {}),
+            **({"ring": ring} if ring is not None else {}),
             particles=particles,
             errors={k: scalar(v) for k, v in err.items()},
             diagnostics={k: (float(v) if np.ndim(v) == 0 else floats(v)) for k, v in diag.items()},
@@ -423,6 +430,10 @@ def report(
     print("diagnostics: " + "  ".join(f"{k}={_fmt(v)}" for k, v in diag.items()))
     if plate is not None:
         print(f"plate: velocity={plate['velocity']:.6g}  gurney={plate['gurney']:.6g}")
+    if ring is not None:
+        print(
+            f"ring: velocity={ring['velocity']:.6g}  radius={ring['radius']:.6g}  gurney={ring['gurney']:.6g}"
+        )
     if grad is not None:
         print(
             "d(F_rms_rel)/d: "

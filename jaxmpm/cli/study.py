@@ -14,6 +14,7 @@ STUDIES = {
     "multid": "multid",
     "detonation": "detonation",
     "blast": "blast",
+    "gurney": "gurney",
 }
 """The name on the command line of each study, and its module in ``jaxmpm.studies``."""
 
@@ -39,7 +40,9 @@ def add_parser(subparsers) -> None:
         "and 3D (first step, axis-aligned orders, blast domain gaps, a 100k-particle 2D run); detonation: "
         "the planar detonation's F by interpolator, its convergence behind the front and the peak pressure "
         "against P_CJ by burn model; blast: the 2D disk and 3D sphere gas charges against their radial "
-        "reference by interpolator and remedy (breakdowns, errors, smoothness) and the refined best CPDI",
+        "reference by interpolator and remedy (breakdowns, errors, smoothness) and the refined best "
+        "CPDI; gurney: a charge driving its metal tube in 2D, the tube's velocity against Gurney's by "
+        "resolution, interpolator and strength",
     )
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")

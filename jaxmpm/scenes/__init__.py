@@ -8,6 +8,8 @@ from .bodies import Bodies as Bodies
 from .detonation import Detonation as Detonation
 from .gas_expansion import GasExpansion as GasExpansion
 from .gas_slab import GasSlab as GasSlab
+from .gurney import AbstractGurney as AbstractGurney
+from .gurney import GurneyCylinder as GurneyCylinder
 from .gurney import GurneySlab as GurneySlab
 from .interface import Interface as Interface
 from .manufactured import Manufactured as Manufactured
@@ -38,6 +40,7 @@ SCENES: dict[str, type[AbstractScene]] = {
         Interface,
         Detonation,
         GurneySlab,
+        GurneyCylinder,
     )
 }
 """The one registry of scenes, by the name each is known by (``scene.name``, the command line, a saved

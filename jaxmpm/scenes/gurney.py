@@ -1,4 +1,4 @@
-"""An explosive driving a metal plate: the open-faced sandwich of Gurney's formula, in 1D."""
+"""An explosive driving metal: the open-faced sandwich of Gurney's formula in 1D, and the cylinder in 2D."""
 
 from typing import ClassVar
 
@@ -9,8 +9,8 @@ from jaxtyping import Array, ArrayLike, Float
 from .._checks import check_greater, check_positive, check_real
 from .._util import as_float
 from ..explosives import BURNS, EXPLOSIVES, JWL, JWLIsentrope, ProgrammedBurn, cj_energy, cj_state
-from ..geometry import Box
-from ..materials import MIE_GRUNEISEN, MieGruneisen
+from ..geometry import Ball, Box
+from ..materials import MIE_GRUNEISEN, STRENGTH, ElasticPlastic, MieGruneisen
 from ..particles import Body, State
 from ..regions import Region
 from ._base import AbstractScene
@@ -36,6 +36,22 @@ def gurney_sandwich(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""
     return sqrt_2E / jnp.sqrt(((1.0 + 2.0 * r) ** 3 + 1.0) / (6.0 * (1.0 + r)) + r)
 
 
+def gurney_cylinder(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""]) -> Float[Array, ""]:
+    """The terminal velocity of a metal cylinder driven by the explosive it holds, by Gurney's energy
+    balance (Kennedy, as for ``gurney_sandwich``):
+
+        ``V = sqrt(2E) (M/C + 1/2)^(-1/2)``.
+
+    Args:
+        sqrt_2E: the explosive's Gurney velocity ``sqrt(2E)``.
+        M_over_C: the cylinder's mass over the charge's, per unit length.
+
+    Returns:
+        ``V``.
+    """
+    return jnp.asarray(sqrt_2E) / jnp.sqrt(jnp.asarray(M_over_C) + 0.5)
+
+
 GURNEY_EXPLOSIVES = EXPLOSIVE_NAMES + ("jwl",)
 """The Gurney slab's ``explosive`` choices: ``Detonation``'s, and ``"jwl"`` of the scene's own constants."""
 
@@ -46,33 +62,19 @@ def _fraction(x: object) -> float:
     return float(x)
 
 
-class GurneySlab(AbstractScene):
-    """A slab of explosive lit at its free back face ``X = 0``, driving a metal plate on its far face.
+class AbstractGurney(AbstractScene):
+    """A charge of explosive driving metal: the explosive's and the metal's parameters, shared by
+    ``GurneySlab`` and ``GurneyCylinder``.
 
-    The setup of Uintah's MPM Gurney input: explosive on ``[0, charge]``, ``charge = split L`` (a
-    ``jaxmpm.explosives.ProgrammedBurn`` with the products of ``Detonation``: ``explosive``, ``products``,
-    ``D``, ``gamma``, ``rho0``, ``burn``; or ``explosive="jwl"``, below), then ``plate`` of metal
-    (``MieGruneisen`` of ``MIE_GRUNEISEN[metal]``, at rest at its reference density) on ``[charge, L]``.
-    Both ends are free.
-    The products push the plate, which rings and tends to a terminal velocity; Gurney's formula for an
-    open-faced sandwich, ``gurney_velocity``, estimates it from the explosive's Gurney constant
-    ``sqrt_2E`` and the mass ratio (a model accurate to a few per cent). For Comp B (``sqrt(2E) = 2.70``
-    km/s) on 4 cm, driving 1 cm of 4340 steel, ``M/C = 1.14`` and ``V = 1356`` m/s.
-
-    ``explosive="jwl"`` makes the products a JWL of the scene's own constants ``A, B, R1, R2, w`` (SI;
-    Comp B's by default) at density ``rho0``, whose detonation energy ``E0`` is not given but implied by
-    the detonation speed ``D`` (``jaxmpm.explosives.cj_energy``: the EOS's CJ state has speed ``D``).
-    A fit of the JWL constants to a plate's velocity (``jaxmpm calibrate gurney-slab explosive=jwl --fit
-    A,B``) thus keeps the EOS consistent with the measured ``D``.
-
-    ``plate_velocity(state, body)`` is the plate's mean (momentum over mass) velocity. The products
-    escape from the free back face at several km/s: ``pad`` (cells of grid beyond the body on each
-    side) must hold them until the end of the run.
+    The explosive is a ``jaxmpm.explosives.ProgrammedBurn`` with the products of ``Detonation``
+    (``explosive``, ``products``, ``D``, ``gamma``, ``rho0``, ``burn``), lit at the origin; or, with
+    ``explosive="jwl"``, a JWL of the scene's own constants ``A, B, R1, R2, w`` (SI; Comp B's by
+    default) at density ``rho0``, whose detonation energy ``E0`` is not given but implied by the
+    detonation speed ``D`` (``jaxmpm.explosives.cj_energy``: the EOS's CJ state has speed ``D``), so
+    that a fit of the JWL constants to the metal's velocity keeps the EOS consistent with the measured
+    ``D``. The metal is ``MieGruneisen`` of ``MIE_GRUNEISEN[metal]``, at rest at its reference density.
 
     Attributes:
-        L: charge and plate together (m).
-        split: the charge's share of ``L`` (static, in ``(0, 1)``; a particle centre at the split is
-            the charge's).
         sqrt_2E: the explosive's Gurney velocity (m/s), for ``gurney_velocity``.
         D, gamma, rho0: the gamma-law products (with ``explosive="gamma-law"``; ``D`` and ``rho0`` also
             with ``"jwl"``).
@@ -81,25 +83,11 @@ class GurneySlab(AbstractScene):
         explosive: as for ``Detonation``, or ``"jwl"`` (static).
         products, burn: as for ``Detonation`` (static).
         metal: a key of ``MIE_GRUNEISEN`` (static).
-        cells: cells across charge and plate together (``h = L / cells``; static).
-        ppc, pad: as for every scene.
+        strength: the metal's elastic-perfectly-plastic deviatoric stress (``ElasticPlastic`` of
+            ``STRENGTH[metal]``; static). Without it the metal is hydrodynamic, as Gurney's formula
+            assumes.
     """
 
-    name: ClassVar[str] = "gurney-slab"
-    description: ClassVar[str] = (
-        "1D open-faced sandwich: a charge lit at its free face drives a metal plate (Gurney: 1356 m/s)"
-    )
-    dim: ClassVar[int] = 1
-    left: ClassVar[str] = "free"
-    right: ClassVar[str] = "free"
-    body_force: ClassVar[None] = None
-    traction: ClassVar[None] = None
-    exact: ClassVar[None] = None
-    initial_position: ClassVar[None] = None
-    smooth: ClassVar[None] = None
-
-    L: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
-    split: float = eqx.field(static=True, converter=_fraction, default=0.8)
     sqrt_2E: Float[Array, ""] = eqx.field(converter=as_float, default=2700.0)
     D: Float[Array, ""] = eqx.field(converter=as_float, default=7980.0)
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=3.0)
@@ -114,11 +102,11 @@ class GurneySlab(AbstractScene):
     products: str = eqx.field(static=True, default="full")
     burn: str = eqx.field(static=True, default="time")
     metal: str = eqx.field(static=True, default="steel-4340")
-    cells: int = eqx.field(static=True, default=200)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=800)
+    strength: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
+        if not isinstance(self.strength, bool):
+            raise ValueError(f"strength must be true or false, got {self.strength!r}")
         for name, value, allowed in (
             ("explosive", self.explosive, GURNEY_EXPLOSIVES),
             ("products", self.products, PRODUCTS),
@@ -127,9 +115,6 @@ class GurneySlab(AbstractScene):
         ):
             if value not in allowed:
                 raise ValueError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
-        check_positive("L", self.L)
-        if not 0.0 < self.split < 1.0:
-            raise ValueError(f"split must be a fraction of L in (0, 1), got {self.split!r}")
         check_positive("sqrt_2E", self.sqrt_2E)
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
@@ -137,24 +122,11 @@ class GurneySlab(AbstractScene):
         if self.explosive == "jwl":
             JWL(self.rho0, self.A, self.B, self.R1, self.R2, self.w)  # its own checks of the constants
 
-    @property
-    def h(self) -> Float[Array, ""]:
-        """The grid spacing ``L / cells``."""
-        return self.L / self.cells
-
-    @property
-    def charge(self) -> Float[Array, ""]:
-        """The charge's thickness, ``split L``."""
-        return self.split * self.L
-
-    @property
-    def plate(self) -> Float[Array, ""]:
-        """The plate's thickness, ``(1 - split) L``."""
-        return (1.0 - self.split) * self.L
-
-    def _metal(self) -> tuple[MieGruneisen, Float[Array, ""]]:
+    def _metal(self) -> tuple[MieGruneisen | ElasticPlastic, Float[Array, ""]]:
         row = MIE_GRUNEISEN[self.metal]
-        return MieGruneisen(**row), jnp.asarray(row["rho_ref"], dtype=self.h.dtype)
+        eos = MieGruneisen(**row)
+        metal = ElasticPlastic(eos, **STRENGTH[self.metal]) if self.strength else eos
+        return metal, jnp.asarray(row["rho_ref"], dtype=self.h.dtype)
 
     def _explosive(self):
         if self.explosive == "jwl":
@@ -171,7 +143,7 @@ class GurneySlab(AbstractScene):
             reactant=None,
             products=products,
             D=cj["D"],
-            points=jnp.zeros((1, 1), dtype=self.h.dtype),
+            points=jnp.zeros((1, self.dim), dtype=self.h.dtype),
             width=self.burn_width * self.h / self.ppc,
             J_CJ=cj["J_CJ"],
             burn=self.burn,
@@ -189,6 +161,89 @@ class GurneySlab(AbstractScene):
     def material(self):
         return self._explosive()[0]
 
+    def initial_velocity(self, X):
+        return jnp.zeros_like(X)
+
+    def charge_density(self) -> Float[Array, ""]:
+        """The explosive's density (``rho0``, or the JWL row's).
+
+        Returns:
+            ``rho0`` of the charge.
+        """
+        return self._explosive()[1]
+
+    def metal_density(self) -> Float[Array, ""]:
+        """The metal's reference density.
+
+        Returns:
+            ``rho_ref`` of ``MIE_GRUNEISEN[metal]``.
+        """
+        return self._metal()[1]
+
+
+class GurneySlab(AbstractGurney):
+    """A slab of explosive lit at its free back face ``X = 0``, driving a metal plate on its far face.
+
+    The setup of Uintah's MPM Gurney input: explosive on ``[0, charge]``, ``charge = split L``
+    (``AbstractGurney``), then ``plate`` of metal on ``[charge, L]``. Both ends are free.
+    The products push the plate, which rings and tends to a terminal velocity; Gurney's formula for an
+    open-faced sandwich, ``gurney_velocity``, estimates it from the explosive's Gurney constant
+    ``sqrt_2E`` and the mass ratio (a model accurate to a few per cent). For Comp B (``sqrt(2E) = 2.70``
+    km/s) on 4 cm, driving 1 cm of 4340 steel, ``M/C = 1.14`` and ``V = 1356`` m/s.
+
+    ``plate_velocity(state, body)`` is the plate's mean (momentum over mass) velocity. The products
+    escape from the free back face at several km/s: ``pad`` (cells of grid beyond the body on each
+    side) must hold them until the end of the run.
+
+    Attributes:
+        L: charge and plate together (m).
+        split: the charge's share of ``L`` (static, in ``(0, 1)``; a particle centre at the split is
+            the charge's).
+        cells: cells across charge and plate together (``h = L / cells``; static).
+        ppc, pad: as for every scene.
+        sqrt_2E, D, gamma, rho0, A, B, R1, R2, w, burn_width, explosive, products, burn, metal, strength:
+            as for ``AbstractGurney``.
+    """
+
+    name: ClassVar[str] = "gurney-slab"
+    description: ClassVar[str] = (
+        "1D open-faced sandwich: a charge lit at its free face drives a metal plate (Gurney: 1356 m/s)"
+    )
+    dim: ClassVar[int] = 1
+    left: ClassVar[str] = "free"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
+
+    L: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
+    split: float = eqx.field(static=True, converter=_fraction, default=0.8)
+    cells: int = eqx.field(static=True, default=200)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=800)
+
+    def __check_init__(self):
+        check_positive("L", self.L)
+        if not 0.0 < self.split < 1.0:
+            raise ValueError(f"split must be a fraction of L in (0, 1), got {self.split!r}")
+
+    @property
+    def h(self) -> Float[Array, ""]:
+        """The grid spacing ``L / cells``."""
+        return self.L / self.cells
+
+    @property
+    def charge(self) -> Float[Array, ""]:
+        """The charge's thickness, ``split L``."""
+        return self.split * self.L
+
+    @property
+    def plate(self) -> Float[Array, ""]:
+        """The plate's thickness, ``(1 - split) L``."""
+        return (1.0 - self.split) * self.L
+
     def regions(self) -> tuple[Region, Region]:
         """The charge (lit at ``X = 0``, with its detonation energy) and the plate, both at rest.
 
@@ -204,14 +259,10 @@ class GurneySlab(AbstractScene):
             Region(Box(k, float(self.cells)) - charge, metal, rho_metal, 0.0, 0.0),
         )
 
-    def initial_velocity(self, X):
-        return jnp.zeros_like(X)
-
     @property
     def mass_ratio(self) -> Float[Array, ""]:
         """``M / C``: the plate's mass per unit area over the charge's."""
-        rho_c = self._explosive()[1]
-        return self._metal()[1] * self.plate / (rho_c * self.charge)
+        return self.metal_density() * self.plate / (self.charge_density() * self.charge)
 
     def gurney_velocity(self) -> Float[Array, ""]:
         """Gurney's terminal plate velocity of this sandwich (``gurney_sandwich``).
@@ -233,3 +284,130 @@ class GurneySlab(AbstractScene):
         """
         w = jnp.where(body.region == 1, body.m, 0.0)
         return jnp.sum(w * state.v[:, 0]) / jnp.sum(w)
+
+
+class GurneyCylinder(AbstractGurney):
+    """A cylinder of explosive lit on its axis, driving the metal tube around it: a cross-section in 2D.
+
+    A disk of explosive of radius ``radius`` (``AbstractGurney``) fills a metal ring of thickness
+    ``thickness``, both centred at the origin and at rest; the detonation spreads from the centre.
+    Only the quarter ``X_a >= 0`` is simulated, with planes of symmetry at ``X_a = 0``; the ring's
+    outer surface is free. The products drive the ring outwards; Gurney's formula for a cylinder,
+    ``gurney_velocity``, estimates the velocity it tends to. For Comp B (``sqrt(2E) = 2.70`` km/s) of
+    radius 4 cm in a 4340 steel tube 4-5 cm, ``M/C = 2.559`` and ``V = 1544`` m/s.
+
+    ``ring_velocity(state, body)`` is the ring's radial velocity (radial momentum over mass), and
+    ``ring_radius`` its mean radius. The ring doubles its radius in about 30 us: ``pad`` must hold it.
+
+    Attributes:
+        R: the ring's outer radius (m).
+        split: the charge's radius over ``R`` (static, in ``(0, 1)``; a particle centre at the split is
+            the charge's).
+        cells: cells across charge and ring together (``h = R / cells``; static).
+        ppc: particles per cell along each axis (static).
+        pad: cells of grid beyond ``cells h`` on each side (static).
+        sqrt_2E, D, gamma, rho0, A, B, R1, R2, w, burn_width, explosive, products, burn, metal, strength:
+            as for ``AbstractGurney``.
+    """
+
+    name: ClassVar[str] = "gurney-cylinder"
+    description: ClassVar[str] = (
+        "2D cross-section: a charge lit on its axis drives a metal tube (quarter; Gurney: 1544 m/s)"
+    )
+    dim: ClassVar[int] = 2
+    left: ClassVar[str] = "symmetry"
+    right: ClassVar[str] = "free"
+    body_force: ClassVar[None] = None
+    traction: ClassVar[None] = None
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
+
+    R: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
+    split: float = eqx.field(static=True, converter=_fraction, default=0.8)
+    cells: int = eqx.field(static=True, default=20)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=24)
+
+    def __check_init__(self):
+        check_positive("R", self.R)
+        if not 0.0 < self.split < 1.0:
+            raise ValueError(f"split must be a fraction of R in (0, 1), got {self.split!r}")
+        k = self.split * self.cells
+        if not 1.0 <= k <= self.cells - 1.0:
+            raise ValueError(
+                f"the charge and the ring must each be at least a cell across: split * cells = {k:.6g} "
+                f"of cells = {self.cells} (raise cells)"
+            )
+
+    @property
+    def h(self) -> Float[Array, ""]:
+        """The grid spacing ``R / cells``."""
+        return self.R / self.cells
+
+    @property
+    def radius(self) -> Float[Array, ""]:
+        """The charge's radius, ``split R``."""
+        return self.split * self.R
+
+    @property
+    def thickness(self) -> Float[Array, ""]:
+        """The ring's thickness, ``(1 - split) R``."""
+        return (1.0 - self.split) * self.R
+
+    def regions(self) -> tuple[Region, Region]:
+        """The charge (lit at the centre, with its detonation energy) and the ring, both at rest.
+
+        Returns:
+            ``(charge, ring)``.
+        """
+        burn, rho0, e0, _ = self._explosive()
+        metal, rho_metal = self._metal()
+        k = self.split * self.cells
+        zero = (0.0, 0.0)
+        charge = Ball(zero, k)
+        return (
+            Region(charge, burn, rho0, zero, e0),
+            Region(Ball(zero, float(self.cells)) - charge, metal, rho_metal, zero, 0.0),
+        )
+
+    @property
+    def mass_ratio(self) -> Float[Array, ""]:
+        """``M / C``: the ring's mass per unit length over the charge's."""
+        ring = 1.0 - self.split**2
+        return self.metal_density() * ring / (self.charge_density() * self.split**2)
+
+    def gurney_velocity(self) -> Float[Array, ""]:
+        """Gurney's terminal velocity of this cylinder (``gurney_cylinder``).
+
+        Returns:
+            ``V`` (m/s).
+        """
+        return gurney_cylinder(self.sqrt_2E, self.mass_ratio)
+
+    def ring_velocity(self, state: State, body: Body) -> Float[Array, ""]:
+        """The ring's radial velocity: its radial momentum over its mass.
+
+        Args:
+            state: the state.
+            body: the reference configuration (``body.region`` 1 is the ring).
+
+        Returns:
+            ``sum m (v . x / |x|) / sum m`` over the ring's particles.
+        """
+        w = jnp.where(body.region == 1, body.m, 0.0)
+        v_r = jnp.sum(state.v * state.x, axis=-1) / jnp.linalg.norm(state.x, axis=-1)
+        return jnp.sum(w * v_r) / jnp.sum(w)
+
+    def ring_radius(self, state: State, body: Body) -> Float[Array, ""]:
+        """The ring's mean radius (mass-weighted), to follow its expansion.
+
+        Args:
+            state: the state.
+            body: the reference configuration.
+
+        Returns:
+            ``sum m |x| / sum m`` over the ring's particles.
+        """
+        w = jnp.where(body.region == 1, body.m, 0.0)
+        return jnp.sum(w * jnp.linalg.norm(state.x, axis=-1)) / jnp.sum(w)
