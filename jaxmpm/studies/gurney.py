@@ -128,8 +128,9 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
         ok = fail is None and t <= ts[keep][-1]
         row[f"v_{t:g}"] = float(np.interp(t, ts[keep], v_ring[keep])) if ok else None
         row[f"r_{t:g}"] = float(np.interp(t, ts[keep], r_ring[keep])) if ok else None
-    spread = folded = None
+    spread = folded = ring_spread = None
     if fail is None:
+        ring_spread = _ring_spread(x[-1], v[-1], m)
         centre = np.zeros(2)
         spread = float(jm.metrics.angular_spread(sol.state, body, centre, cells, detrend=True)["rms"])
         if name in ("cpdi", "mpq"):
@@ -137,6 +138,7 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
             folded = int(jm.metrics.folded_domains(corners, body))
     row.update(
         spread_rms=spread,
+        ring_spread=ring_spread,
         folded=folded,
         t=ts[keep].tolist(),
         v_ring=v_ring[keep].tolist(),
@@ -146,6 +148,20 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
         wall_s=time.perf_counter() - t0,
     )
     return row
+
+
+SECTORS = 8
+"""The ring's angular sectors of ``ring_spread``."""
+
+
+def _ring_spread(x, v, m) -> float:
+    """The spread of the ring's radial velocity over the angle: the standard deviation of the mass-mean
+    radial velocity of ``SECTORS`` equal sectors of the quarter, over the ring's mean."""
+    r = np.linalg.norm(x, axis=-1)
+    v_r = np.sum(v * x, axis=-1) / r
+    sector = np.minimum((np.arctan2(x[:, 1], x[:, 0]) / (0.5 * np.pi) * SECTORS).astype(int), SECTORS - 1)
+    means = np.array([np.sum((m * v_r)[sector == k]) / np.sum(m[sector == k]) for k in range(SECTORS)])
+    return float(np.std(means) / abs(np.sum(m * v_r) / np.sum(m)))
 
 
 def resolution_order(rows: list[dict], t: float) -> dict | None:
@@ -187,9 +203,9 @@ def _table(rows: list[dict], times, lead: tuple[str, ...]) -> list[str]:
     lines = [
         f"| {head} | status | "
         + " | ".join(f"v at {1e6 * t:g} us (m/s)" for t in times)
-        + f" | r / R0 at {1e6 * times[-1]:g} us | last / Gurney | particles' M/C | angular spread (RMS) "
-        "| folded | wall s |",
-        "|" + "---|" * (len(lead) + len(times) + 7),
+        + f" | r / R0 at {1e6 * times[-1]:g} us | last / Gurney | particles' M/C | ring's spread over the "
+        "angle | angular spread (RMS) | folded | wall s |",
+        "|" + "---|" * (len(lead) + len(times) + 8),
     ]
     for r in rows:
         last = r[f"v_{times[-1]:g}"]
@@ -211,7 +227,7 @@ def _table(rows: list[dict], times, lead: tuple[str, ...]) -> list[str]:
             + " | ".join(_num(r[f"v_{t:g}"], ".1f") for t in times)
             + f" | {_num(None if r_last is None else r_last / r['r0'], '.3f')}"
             + f" | {_num(None if last is None else last / r['gurney'], '.4f')}"
-            + f" | {r['mass_ratio_particles']:.4f}"
+            + f" | {r['mass_ratio_particles']:.4f} | {_num(r['ring_spread'], '.2e')}"
             + f" | {_num(r['spread_rms'], '.2e')} | {_num(r['folded'], 'd')} | {r['wall_s']:.1f} |"
         )
     return lines
@@ -230,8 +246,11 @@ def _markdown(result: dict) -> str:
         f"formula with sqrt(2E) = 2.70 km/s gives {first['gurney']:.1f} m/s, the velocity the tube tends "
         "to as the products expand without limit (a model accurate to a few per cent, without the metal's "
         "strength). The ring's velocity is its radial momentum over its mass; r / R0 is its mean radius "
-        "over that at rest (4.5 cm). The angular spread is that of the radial velocity at equal reference "
-        "radius, detrended, RMS over radial bins of one cell (0 for a radially symmetric motion); folded "
+        "over that at rest (4.5 cm). The ring's spread over the angle is the standard deviation of its "
+        f"radial velocity over {SECTORS} equal sectors of the quarter, over its mean, at the last time. The "
+        "angular spread is that of the radial velocity of the whole body (products and ring) at equal "
+        "reference radius, detrended, RMS over radial bins of one cell; both are 0 for a radially "
+        "symmetric motion. folded "
         "counts the CPDI or MPQ domains turned inside out. A run that broke down is marked `broken down` "
         "and none of its numbers is used.",
         "",
