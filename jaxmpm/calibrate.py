@@ -57,9 +57,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._checks import check_int, check_positive
-from ._simulate import SaveAt, simulate
+from ._simulate import SaveAt, as_devices, simulate
+from ._util import host
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .scenes.gas_slab import free_surface, pad_for
@@ -287,9 +289,10 @@ class _Model:
     """The residuals and their Jacobian in the fit's variables, batched over members (starts or data
     sets): one compiled ``vmap`` of a forward-mode Jacobian through the run."""
 
-    def __init__(self, scene, interpolator, names, t_data, dt, simulate_kwargs):
+    def __init__(self, scene, interpolator, names, t_data, dt, simulate_kwargs, devices=None):
         self.scene, self.interpolator, self.names = scene, interpolator, tuple(names)
         self.t_data, self.dt, self.kwargs = t_data, dt, simulate_kwargs
+        self.devices = devices
         offs = offsets(scene, names)
         self.off = np.array([offs[n] for n in names])
         self.offsets = offs
@@ -320,14 +323,33 @@ class _Model:
     def physical(self, start_theta, theta) -> np.ndarray:
         return self.off + np.exp(np.asarray(start_theta) + np.asarray(theta))
 
+    def _batched(self, fn, *args):
+        """``fn`` of the members' rows, as NumPy arrays; with ``devices``, the rows are padded to a
+        multiple of the device count (repeating the last), sharded over them, and gathered back
+        (from every process)."""
+        if self.devices is None:
+            out = fn(*(jnp.asarray(a) for a in args))
+            return tuple(np.asarray(o) for o in out) if isinstance(out, tuple) else np.asarray(out)
+        n, k = np.shape(args[0])[0], len(self.devices)
+        padded = -(-n // k) * k
+        sharding = NamedSharding(Mesh(np.asarray(self.devices), ("members",)), PartitionSpec("members"))
+        dtype = self.scene.h.dtype
+        put = []
+        for a in args:
+            a = np.asarray(a, dtype=dtype)
+            put.append(jax.device_put(np.concatenate([a, np.repeat(a[-1:], padded - n, axis=0)]), sharding))
+        out = fn(*put)
+        if isinstance(out, tuple):
+            return tuple(host(o)[:n] for o in out)
+        return host(out)[:n]
+
     def residuals_and_jacobian(self, theta, start_theta, data):
-        r, J = self._rj(jnp.asarray(theta), jnp.asarray(start_theta), jnp.asarray(data))
-        r, J = np.asarray(r), np.asarray(J)
+        r, J = self._batched(self._rj, theta, start_theta, data)
         ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(J), axis=(1, 2))
         return r, J, ok
 
     def residuals(self, theta, start_theta, data):
-        r = np.asarray(self._r(jnp.asarray(theta), jnp.asarray(start_theta), jnp.asarray(data)))
+        r = self._batched(self._r, theta, start_theta, data)
         return r, np.all(np.isfinite(r), axis=1)
 
     def why(self, values: np.ndarray) -> tuple[str, dict | None]:
@@ -365,6 +387,7 @@ def calibrate(
     max_correlation: float = MAX_CORRELATION,
     max_relative_std: float = MAX_RELATIVE_STD,
     progress: bool | None = None,
+    devices=None,
     **simulate_kwargs,
 ) -> Fit:
     """Fit ``fit`` (names of the scene's continuous parameters) to a free-surface trajectory.
@@ -390,6 +413,10 @@ def calibrate(
         max_correlation: the largest acceptable magnitude of a correlation (else ``Fit.warning``).
         max_relative_std: the largest acceptable relative standard error (else ``Fit.warning``).
         progress: a tqdm bar (``None``: only on a terminal or in a notebook).
+        devices: spread the starts over these devices (``method="lm"``): a count (the first of
+            ``jax.devices()``, which spans every process after ``jax.distributed.initialize``) or a
+            sequence of devices; each device runs its share of the starts, and every process gets
+            every start's result and makes the same choices. ``None`` (the default): one device.
         **simulate_kwargs: passed to ``simulate`` (``transfer``, ``artificial_cells``, ...).
 
     Returns:
@@ -398,7 +425,8 @@ def calibrate(
     Raises:
         ValueError: bad input (names that are not continuous parameters, ``h`` or ``dt``, a name
             given twice, an unknown method, data of mismatched shapes or not finite, times not
-            increasing from ``>= 0``, data beyond the grid, a bad ``noise`` or threshold).
+            increasing from ``>= 0``, data beyond the grid, a bad ``noise`` or threshold, bad
+            ``devices`` or ``devices`` with a method other than ``"lm"``).
         CalibrationError: every start broke down, or the best start cannot go on because every
             step toward a lower loss is a run that breaks down.
     """
@@ -409,6 +437,9 @@ def calibrate(
     check_int("iterations", iterations, 1)
     check_positive("learning_rate", learning_rate)
     _check_thresholds(noise, max_correlation, max_relative_std)
+    devices = as_devices(devices)
+    if devices is not None and method != "lm":
+        raise ValueError(f"devices spreads the starts of method='lm' only, got method={method!r}")
     t_data, x_data = _check_data(scene, t_data, x_data)
     if isinstance(starts, dict) or starts is None:
         starts = [starts or {}]
@@ -419,7 +450,7 @@ def calibrate(
         )
     base = {n: float(getattr(scene, n)) for n in names}
     start_phys = np.array([[float(s.get(n, base[n])) for n in names] for s in starts])
-    model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
+    model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs, devices)
     _check_starts(names, model.off, start_phys)
     start_theta = np.log(start_phys - model.off)
     data = np.broadcast_to(np.asarray(x_data), (len(starts), x_data.shape[0]))

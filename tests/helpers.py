@@ -18,3 +18,28 @@ def usage(capsys, argv, match):
     assert len(lines) == 1, (argv, captured.err)
     assert lines[0].startswith("jaxmpm: error:") and match in lines[0], lines[0]
     return lines[0]
+
+
+def calibration_case():
+    """A gas-slab fit of ``gamma`` and ``P0`` with four starts, the last of which breaks down (its slab
+    expands off the grid at once): synthetic data from the truth ``gamma = 1.4, P0 = 3e5`` with 1%
+    noise. For the calibration across devices and processes.
+
+    Returns:
+        ``(scene, t, data, starts, dt)``.
+    """
+    import numpy as np
+
+    slab = dict(cells=16, h=1 / 16, pad=96)
+    truth = jm.GasSlab(gamma=1.4, P0=3.0e5, **slab)
+    t = np.linspace(0.0, 12e-3, 61)
+    dt = 0.2 * float(truth.h) / float(np.sqrt(1.4 * 3.0e5 / float(truth.rho0)))
+    x = np.asarray(jm.calibrate.trajectory(truth, jm.CPDI(), t, dt=dt))
+    data = x * (1 + 0.01 * np.random.default_rng(0).standard_normal(x.size))
+    starts = [
+        dict(gamma=1.82, P0=2.1e5),
+        dict(gamma=1.6, P0=3.6e5),
+        dict(gamma=1.3, P0=2.8e5),
+        dict(gamma=1.1, P0=3.9e5),
+    ]
+    return jm.GasSlab(**slab), t, data, starts, dt

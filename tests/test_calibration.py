@@ -239,3 +239,11 @@ def test_calibrate_and_ensemble_cli(tmp_path, capsys, synthetic):
     assert all(1.3 <= r["params"]["gamma"] <= 1.5 and r["x_free"] > 1.0 for r in out["results"])
     assert main(["ensemble", "gas-slab", "--vary", "gamma=2:1", "--members", "3"]) == 2
     assert "LOW <= HIGH" in capsys.readouterr().err
+
+
+def test_devices_spread_lm_starts_only_and_name_what_is_allowed():
+    args = (jm.GasSlab(**SLAB), jm.CPDI(), TS, np.ones_like(TS))
+    with pytest.raises(ValueError, match="devices spreads the starts of method='lm' only, got method='adam'"):
+        cal.calibrate(*args, dt=1e-5, method="adam", devices=1)
+    with pytest.raises(ValueError, match=r"devices must be a count from 1 to \d+"):
+        cal.calibrate(*args, dt=1e-5, devices=10**6)

@@ -1,9 +1,10 @@
 """Two local processes (a coordinator on localhost, 2 forced host devices each, Gloo collectives on
-CPU) run one sharded simulation over their 4 devices, an ensemble, a breakdown and a chunked run
-saved and resumed: the results equal one process's."""
+CPU) run one sharded simulation over their 4 devices, an ensemble, a breakdown, a chunked run saved
+and resumed, and a calibration's starts: the results equal one process's."""
 
 import json
 import os
+import pathlib
 import socket
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import textwrap
 import jax
 import numpy as np
 import pytest
+from helpers import calibration_case
 
 import jaxmpm as jm
 
@@ -69,6 +71,14 @@ WORKER = textwrap.dedent(
                        multihost_utils.process_allgather(getattr(full.state, k), tiled=True))
         for k in ("x", "v", "F", "sigma", "corners"))
     out["resume_x"] = np.asarray(multihost_utils.process_allgather(res.state.x, tiled=True)).ravel().tolist()
+    # a calibration's starts spread over both processes' devices (one start each)
+    sys.path.insert(0, sys.argv[4])  # the tests' helpers
+    from helpers import calibration_case
+    model, t, data, starts, dt = calibration_case()
+    fit = jm.calibrate.calibrate(model, jm.CPDI(), t, data, starts=starts, dt=dt, progress=False,
+                                 devices=jax.devices())
+    out["fit"] = dict(fitted=fit.fitted, starts={k: v.tolist() for k, v in fit.starts_fitted.items()},
+                      failed=sorted(fit.failed_starts), iterations=fit.iterations, std=fit.std)
     print(json.dumps(out))
     """
 )
@@ -106,7 +116,8 @@ def test_two_processes_equal_one(tmp_path):
     script = tmp_path / "worker.py"
     script.write_text(WORKER)
     port = str(_free_port())
-    procs, outs = _two_processes(lambda i: [sys.executable, str(script), str(i), port, str(tmp_path)])
+    tests = str(pathlib.Path(__file__).parent)
+    procs, outs = _two_processes(lambda i: [sys.executable, str(script), str(i), port, str(tmp_path), tests])
     for p, (_, err) in zip(procs, outs):
         assert p.returncode == 0, err[-3000:]
     a, b = (json.loads(out.strip().splitlines()[-1]) for out, _ in outs)
@@ -140,6 +151,17 @@ def test_two_processes_equal_one(tmp_path):
     assert a["resume_identical"] and b["resume_identical"]
     x = np.asarray(jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30).state.x).ravel()
     assert np.max(np.abs(np.asarray(a["resume_x"]) - x)) <= 1e-13 * np.max(np.abs(x))
+    # the calibration: every process has every start's fit; each start as fitted in one process (the
+    # batch of one start per device is compiled apart from the batch of four: round-off, measured 1e-15)
+    model, t, data, starts, dt = calibration_case()
+    fit = jm.calibrate.calibrate(model, jm.CPDI(), t, data, starts=starts, dt=dt, progress=False)
+    assert a["fit"] == b["fit"]
+    assert a["fit"]["failed"] == sorted(fit.failed_starts) == [3]  # the start that breaks down
+    assert a["fit"]["iterations"] == fit.iterations
+    for k, v in fit.fitted.items():
+        assert a["fit"]["fitted"][k] == pytest.approx(v, rel=1e-12)
+        assert a["fit"]["std"][k] == pytest.approx(fit.std[k], rel=1e-9)
+        np.testing.assert_allclose(a["fit"]["starts"][k], fit.starts_fitted[k], rtol=1e-12)
 
 
 def test_command_line_run_over_two_processes(tmp_path, capsys):
