@@ -59,8 +59,8 @@ import numpy as np
 import optax
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from ._checks import check_int, check_positive
-from ._simulate import SaveAt, as_devices, simulate
+from ._checks import check_int, check_positive, is_concrete
+from ._simulate import SaveAt, SimulationError, as_devices, failure_message, simulate
 from ._util import host
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
@@ -251,8 +251,13 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
         **kwargs: passed to ``simulate``.
 
     Returns:
-        The observable at ``ts`` (``scenes.gas_slab.free_surface``, ``GurneySlab.plate_velocity``),
-        NaN everywhere when the run broke down.
+        The observable at ``ts`` (``scenes.gas_slab.free_surface``, ``GurneySlab.plate_velocity``).
+        Traced (inside ``jit``, ``vmap`` or a derivative, as the fit calls it), a run that broke down
+        gives NaN everywhere, which the fit reads as a breakdown.
+
+    Raises:
+        SimulationError: called on concrete values, the run broke down (the step, particle and
+            quantity, as ``simulate`` says them).
     """
     ts = jnp.asarray(ts)
     steps = _steps(ts, dt)
@@ -270,6 +275,8 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
     else:
         values = free_surface(h["x"], h["F"], h.get("corners"), sol.body)
     bad = sol.state.status != 0
+    if is_concrete(bad) and bool(bad):
+        raise SimulationError(failure_message(sol, float(dt)), sol)
     return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, values))
 
 

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from ._util import adjugate, corner_signs, det
-from .materials import AbstractEOS
+from .materials import DEVIATORIC_KEYS, AbstractEOS
 from .particles import Body, State, parallelogram_corners
 from .scenes import AbstractScene
 
@@ -330,13 +330,22 @@ def density(state: State, body: Body) -> Float[Array, " n"]:
 def pressure(state: State) -> Float[Array, " n"]:
     """Each particle's pressure ``-tr(sigma) / dim`` (the viscous pressure included).
 
+    With the deviatoric stress of ``ElasticPlastic`` among the internal variables (``s_xx``, ...), the
+    in-plane diagonal of the deviator is taken out first, ``p = -(tr(sigma) - sum_a s_aa) / dim``
+    (``a < dim``): the mean of the full 3x3 stress, whose out-of-plane components ``sigma`` (1D, 2D)
+    does not hold. Other particles carry zeros there.
+
     Args:
         state: the state.
 
     Returns:
         ``p``.
     """
-    return -jnp.trace(state.sigma, axis1=1, axis2=2) / state.F.shape[-1]
+    dim = state.F.shape[-1]
+    trace = jnp.trace(state.sigma, axis1=1, axis2=2)
+    if state.internal is not None and DEVIATORIC_KEYS[0] in state.internal:
+        trace = trace - sum(state.internal[k] for k in DEVIATORIC_KEYS[:dim])
+    return -trace / dim
 
 
 EULER_FIELDS = ("rho", "u", "p", "e")

@@ -247,3 +247,15 @@ def test_devices_spread_lm_starts_only_and_name_what_is_allowed():
         cal.calibrate(*args, dt=1e-5, method="adam", devices=1)
     with pytest.raises(ValueError, match=r"devices must be a count from 1 to \d+"):
         cal.calibrate(*args, dt=1e-5, devices=10**6)
+
+
+def test_trajectory_of_a_run_that_breaks_down_raises_naming_the_step(synthetic):
+    # eagerly, a broken run is an error with its step, particle and quantity (never NaN data);
+    # traced, as the fit calls it, it is NaN, which the fit reads as a breakdown
+    sc, dt, _ = synthetic
+    with pytest.raises(jm.SimulationError, match=r"step \d+.*particle \d+") as info:
+        cal.trajectory(sc, jm.CPDI(), TS, dt=20 * dt)
+    assert info.value.solution.state.status != 0
+    ts = jnp.asarray(TS)  # (a constant of the traced function, as the fit's times are)
+    traced = jax.jit(lambda g: cal.trajectory(jm.GasSlab(gamma=g, **SLAB), jm.CPDI(), ts, dt=20 * dt))(1.4)
+    assert np.all(np.isnan(np.asarray(traced)))

@@ -308,6 +308,9 @@ def test_sliding_blocks_conserve_energy_and_stay_inside_the_yield_surface():
     p = np.asarray(jax.vmap(MAT.pressure)(jnp.asarray(rho), sol.state.e))
     for a, key in ((0, "s_xx"), (1, "s_yy")):  # sigma = -p I + s (p from -1.7 to 1.1 GPa; 4e-5 Pa)
         np.testing.assert_allclose(sigma[:, a, a], -p + z[key][-1], rtol=0, atol=1e-9 * Y)
+    # the pressure metric reads the EOS's pressure, not the in-plane mean of sigma (which holds s_zz / 2)
+    np.testing.assert_allclose(np.asarray(jm.metrics.pressure(sol.state)), p, rtol=0, atol=1e-9 * Y)
+    assert np.max(np.abs(z["s_zz"][-1])) > 1e-3 * Y  # where the in-plane mean differs
 
 
 def test_gradients_of_a_1d_impact_match_central_differences():
