@@ -43,7 +43,9 @@ Safety:
 - Ctrl-C (``KeyboardInterrupt``) stops a run within a moment (the host polls the running chunk
   instead of blocking on it), discards the chunk in flight, saves the last finished chunk to
   ``out`` (atomically, as every save) and raises ``Interrupted``, a ``KeyboardInterrupt`` with
-  ``step``, ``saved_in`` and ``solution``; ``resume(out)`` then continues bit for bit.
+  ``step``, ``saved_in`` and ``solution``; ``resume(out)`` then continues bit for bit. A run over
+  several processes' devices finishes the chunk in flight instead (its collectives need every
+  process), and all processes stop after the same chunk when any of them had a Ctrl-C.
 """
 
 from __future__ import annotations
@@ -394,6 +396,18 @@ def wait(tree):
     return tree
 
 
+def _any_process(flag: bool) -> bool:
+    """Whether ``flag`` is set on any process (a collective: every process calls it at the same point).
+
+    Args:
+        flag: this process's flag.
+
+    Returns:
+        The flags of every process, or-ed.
+    """
+    return bool(np.any(multihost_utils.process_allgather(np.asarray(flag, dtype=np.int32))))
+
+
 def _drive(
     model, dt_arr, saveat, state, rec: _Recorder, *, steps, chunk, out, checkpoint_every, progress, throw
 ) -> tuple[Solution, float, float]:
@@ -404,6 +418,10 @@ def _drive(
     done = int(state.step)
     bar = None
     held = None  # the step that ``out`` holds, written by this drive
+    # A run over several processes' devices: each chunk's collectives need every process, so a Ctrl-C
+    # in any of them stops all of them after the same chunk (they agree on it after each chunk).
+    together = model.devices is not None and len({d.process_index for d in model.devices}) > 1
+    carried = False  # a Ctrl-C noted during the last vote
     writing = False  # inside rec.save: an exception there leaves the previous file (the write is atomic)
 
     def save():
@@ -422,7 +440,12 @@ def _drive(
         chunks_done = 0
         while done < steps and int(state.status) == 0:
             t0 = time.perf_counter()
-            new_state, saved = wait(compiled(model, dt_arr, state, limit, chunk, saveat))
+            if together:  # every process finishes the chunk: a Ctrl-C is noted, and agreed on below
+                with _DeferInterrupt() as held_chunk:
+                    result = compiled(model, dt_arr, state, limit, chunk, saveat)
+                    new_state, saved = jax.block_until_ready(result)
+            else:
+                new_state, saved = wait(compiled(model, dt_arr, state, limit, chunk, saveat))
             saved = None if saved is None else jax.tree.map(host, saved)
             with _DeferInterrupt() as held_back:  # record the chunk (and save it) whole, or not at all
                 state = new_state
@@ -438,7 +461,14 @@ def _drive(
                 )
                 if out is not None and checkpoint_every and chunks_done % checkpoint_every == 0:
                     save()
-            if held_back.pending:
+            if together:  # the vote is a collective: a Ctrl-C during it counts in the next one
+                mine = held_chunk.pending or held_back.pending or carried or _lost_interrupt()
+                with _DeferInterrupt() as held_vote:
+                    stop = _any_process(mine)
+                carried = held_vote.pending
+                if stop:
+                    raise KeyboardInterrupt
+            elif held_back.pending:
                 raise KeyboardInterrupt
         with _DeferInterrupt() as held_back:
             if out is not None and held != done:

@@ -5,10 +5,12 @@ and resumed, and a calibration's starts: the results equal one process's."""
 import json
 import os
 import pathlib
+import signal
 import socket
 import subprocess
 import sys
 import textwrap
+import time
 
 import jax
 import numpy as np
@@ -191,3 +193,47 @@ def test_command_line_run_over_two_processes(tmp_path, capsys):
         assert np.max(np.abs(a - b)) <= 1e-13 * np.max(np.abs(b)), key
     _, meta = jm.long_run.load(tmp_path / "run.npz")
     assert meta["devices"] == 4 and meta["complete"] and meta["step"] == 20
+
+
+def test_ctrl_c_in_one_process_stops_both_after_the_same_chunk(tmp_path):
+    """A run over two processes' devices: Ctrl-C (SIGINT) to the second process alone. Its chunks'
+    collectives need both, so the processes agree after each chunk: both stop after the same one, the
+    first saves it and reports the step, and neither is left waiting for the other."""
+    port = str(_free_port())
+    path = tmp_path / "run.npz"
+    run = ["run", "gas-expansion", "pad=4000", "beta=1", "--interpolator", "cpdi", "--dt", "1e-7"]
+    run += ["--steps", "1000000000", "--out", str(path), "--chunk", "200", "--checkpoint-every", "1"]
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = dict(os.environ, XLA_FLAGS=flags.strip(), JAXMPM_PROGRESS="0")
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "jaxmpm.cli", *run]
+            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for i in range(2)
+    ]
+    try:
+        deadline = time.monotonic() + 120
+        while not path.exists():  # past start-up and compilation: the first chunk is saved
+            assert time.monotonic() < deadline and all(p.poll() is None for p in procs), [
+                p.communicate() for p in procs if p.poll() is not None
+            ]
+            time.sleep(0.2)
+        procs[1].send_signal(signal.SIGINT)
+        outs = [p.communicate(timeout=60) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+    assert [p.returncode for p in procs] == [130, 130], outs
+    assert outs[1] == ("", "")  # the second process says nothing
+    line = outs[0][1].strip().splitlines()[-1]
+    assert line.startswith("jaxmpm: interrupted at step ") and f"saved in {path}" in line, outs[0][1]
+    step = int(line.split("interrupted at step ")[1].split()[0])
+    _, meta = jm.long_run.load(path)
+    assert meta["step"] == step and step % 200 == 0 and step >= 200 and meta["devices"] == 4
