@@ -180,6 +180,7 @@ def test_breakdown_exits_nonzero_and_names_step_particle_quantity(capsys):
 
 
 @pytest.mark.skipif(shutil.which("jaxmpm") is None, reason="console script not installed")
+@pytest.mark.slow
 def test_console_script():
     proc = subprocess.run(
         ["jaxmpm", "run", "gas-expansion", "--interpolator", "spq", "--dt", "0", "--steps", "1"],

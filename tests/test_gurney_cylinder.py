@@ -10,6 +10,8 @@ import jaxmpm as jm
 from jaxmpm.cli import main
 from jaxmpm.scenes.gurney import gurney_cylinder
 
+pytestmark = pytest.mark.slow  # 2D detonations
+
 SMALL = dict(cells=8, pad=16)
 
 

@@ -36,6 +36,7 @@ def test_off_by_default_and_checked():
         jm.ArtificialViscosity(c_shear=-1.0)
 
 
+@pytest.mark.slow
 def test_it_acts_where_the_flow_shears():
     """The 2D gas expansion is uniform but for its boundary cells: a shear viscosity moves its
     particles by 2.1e-4 h in 20 steps; a disk charge's radial flow has a deviatoric rate everywhere,
@@ -67,6 +68,7 @@ def test_in_1d_the_shear_viscosity_adds_nothing():
     np.testing.assert_array_equal(np.asarray(with_shear.state.x), np.asarray(base.state.x))
 
 
+@pytest.mark.slow
 def test_command_line_and_saved_runs_carry_the_shear_coefficient(tmp_path, capsys):
     import json
 

@@ -248,6 +248,7 @@ def _blocks(mat, velocity, dim=2):
     )
 
 
+@pytest.mark.slow
 def test_the_sound_speed_is_the_longitudinal_elastic_wave_speed():
     """At rest at the reference density ``c_eos = c0``; with strength ``c^2 = c0^2 + 4 G / (3 rho)``
     (5847.13 m/s for 4340 steel), which sets the stable step and the CFL check."""
@@ -272,6 +273,7 @@ def test_the_sound_speed_is_the_longitudinal_elastic_wave_speed():
     assert int(sol.status) == 0
 
 
+@pytest.mark.slow
 def test_sliding_blocks_conserve_energy_and_stay_inside_the_yield_surface():
     """Two 4340 steel blocks with strength slide past each other at +-100 m/s (MPM sticks them where
     they meet): a shear wave of ``rho c_s v = 2.5 GPa`` in elastic terms, so the metal yields. 100 steps
@@ -313,6 +315,7 @@ def test_sliding_blocks_conserve_energy_and_stay_inside_the_yield_surface():
     assert np.max(np.abs(z["s_zz"][-1])) > 1e-3 * Y  # where the in-plane mean differs
 
 
+@pytest.mark.slow
 def test_gradients_of_a_1d_impact_match_central_differences():
     """Two steel bars with strength meet at +-100 m/s (uniaxial strain, above the elastic limit
     ~30 m/s): d/dY of the final kinetic energy, through the radial return and through particles still

@@ -62,6 +62,7 @@ def test_a_uniform_J_is_its_own_average(kind, interpolator):
     np.testing.assert_allclose(_volume_averaged(kind, s.grid, s.body, stencil, x, F_u), F_u, rtol=1e-14)
 
 
+@pytest.mark.slow
 def test_volume_average_is_refused_by_name_and_changes_a_blast():
     with pytest.raises(ValueError, match="volume_average must be None or one of 'cell', 'node', got 'nodal'"):
         jm.simulate(jm.Blast(cells=4), jm.CPDI(), dt=1e-5, steps=1, volume_average="nodal")
