@@ -53,7 +53,7 @@ def gurney_cylinder(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""
 
 
 GURNEY_EXPLOSIVES = EXPLOSIVE_NAMES + ("jwl",)
-"""The Gurney slab's ``explosive`` choices: ``Detonation``'s, and ``"jwl"`` of the scene's own constants."""
+"""The Gurney scenes' ``explosive`` choices: ``Detonation``'s, and ``"jwl"`` of the scene's own constants."""
 
 
 def _fraction(x: object) -> float:
@@ -297,7 +297,8 @@ class GurneyCylinder(AbstractGurney):
     radius 4 cm in a 4340 steel tube 4-5 cm, ``M/C = 2.559`` and ``V = 1544`` m/s.
 
     ``ring_velocity(state, body)`` is the ring's radial velocity (radial momentum over mass), and
-    ``ring_radius`` its mean radius. The ring doubles its radius in about 30 us: ``pad`` must hold it.
+    ``ring_radius`` its mean radius. The ring reaches twice its radius at about 40 us: ``pad`` must hold
+    it.
 
     Attributes:
         R: the ring's outer radius (m).
