@@ -36,7 +36,7 @@ import numpy as np
 import jaxmpm as jm
 from jaxmpm.explosives import BURNS
 
-from ._runtime import machine, require_float64
+from ._runtime import machine, number, require_float64, run_status, status_cell
 
 CFL = 0.3
 """The Courant number of every run."""
@@ -116,13 +116,6 @@ def _finite(x) -> float | None:
     """A finite float, or ``None`` (JSON has no NaN)."""
     x = float(x)
     return x if math.isfinite(x) else None
-
-
-def _status(sol) -> tuple[str, dict | None]:
-    fail = sol.failure()
-    if fail is None:
-        return "ok", None
-    return f"{fail['quantities'][0]} at step {fail['step']}", fail
 
 
 def expected_steps(scene, t_end: float) -> int:
@@ -241,7 +234,7 @@ def interpolator_row(
         scene, name, artificial_cells, t_end, max_steps=max_steps, cache=cache, frames=frames
     )
     st, body = sol.state, sol.body
-    status, fail = _status(sol)
+    status, fail = run_status(sol)
     row = dict(
         interpolator=name,
         ppc=scene.ppc,
@@ -391,7 +384,7 @@ def peak_row(
     """
     t_end = 0.8 * float(scene.t_valid)
     sol, wall = simulate(scene, name, artificial_cells, t_end, max_steps=max_steps, cache=cache)
-    status, fail = _status(sol)
+    status, fail = run_status(sol)
     row = dict(
         explosive=scene.explosive,
         burn=scene.burn,
@@ -518,7 +511,7 @@ def gurney(cfg: dict) -> list[dict]:
             saveat=jm.SaveAt(every=every, fields=("v",)),
             throw=False,
         )
-        status, fail = _status(sol)
+        status, fail = run_status(sol)
         w = np.where(np.asarray(sol.body.region) == 1, np.asarray(sol.body.m), 0.0)
         ts = np.asarray(sol.ts)
         v = np.asarray(sol.history["v"][:, :, 0]) @ w / w.sum()
@@ -564,16 +557,8 @@ def goals(table1: list[dict]) -> list[dict]:
     return out
 
 
-def _num(x, fmt: str = ".2e") -> str:
-    return "-" if x is None else format(x, fmt)
-
-
 def _pct(x, signed: bool = False) -> str:
     return "-" if x is None else format(100.0 * x, "+.2f" if signed else ".2f") + "%"
-
-
-def _status_cell(r: dict) -> str:
-    return "ok" if r["failure"] is None else f"broken down: {r['status']}"
 
 
 def _markdown(result: dict) -> str:
@@ -608,9 +593,9 @@ def _markdown(result: dict) -> str:
     for r in t1:
         lines.append(
             f"| {r['interpolator']} | {r['ppc']} | {r['cells']} | {r['artificial_cells']} "
-            f"| {_status_cell(r)} "
+            f"| {status_cell(r)} "
             f"| {_pct(r['F_max_rel'])} | {_pct(r['F_rms_rel'])} | {_pct(r['p_rms_rel'])} "
-            f"| {_num(r['plateau_p'], '.4f')} | {_pct(r['plateau_F_spread'])} |"
+            f"| {number(r['plateau_p'], '.4f')} | {_pct(r['plateau_F_spread'])} |"
         )
     same = _artificial_cells_agree(t1)
     if same is not None:
@@ -643,8 +628,8 @@ def _markdown(result: dict) -> str:
     ]
     for r in conv["rows"]:
         lines.append(
-            f"| {r['interpolator']} | {r['cells_per_10cm']} | {r['particles']} | {_status_cell(r)} "
-            f"| {_num(r['F_rms_rel'])} | {_num(r['p_rms_rel'])} | {r['wall_s']:.1f} |"
+            f"| {r['interpolator']} | {r['cells_per_10cm']} | {r['particles']} | {status_cell(r)} "
+            f"| {number(r['F_rms_rel'])} | {number(r['p_rms_rel'])} | {r['wall_s']:.1f} |"
         )
     lines += [
         "",
@@ -654,9 +639,9 @@ def _markdown(result: dict) -> str:
     ]
     for o in conv["orders"]:
         lines.append(
-            f"| {o['interpolator']} | {_num(o['F_rms_rel_order_fit'], '.2f')} "
-            f"| {_num(o['F_rms_rel_order_finest'], '.2f')} | {_num(o['p_rms_rel_order_fit'], '.2f')} "
-            f"| {_num(o['p_rms_rel_order_finest'], '.2f')} |"
+            f"| {o['interpolator']} | {number(o['F_rms_rel_order_fit'], '.2f')} "
+            f"| {number(o['F_rms_rel_order_finest'], '.2f')} | {number(o['p_rms_rel_order_fit'], '.2f')} "
+            f"| {number(o['p_rms_rel_order_finest'], '.2f')} |"
         )
     resolutions = list(cfg["peak"])
     lines += [
@@ -688,7 +673,7 @@ def _markdown(result: dict) -> str:
                     if r["explosive"] == explosive and r["burn"] == burn and r["cells_per_10cm"] == c
                 )
                 if r["failure"] is not None:
-                    cells.append(_status_cell(r))
+                    cells.append(status_cell(r))
                 elif r["peak"] is None:
                     cells.append("-")
                 elif r["peak"] < UNLIT:
@@ -698,7 +683,7 @@ def _markdown(result: dict) -> str:
                 else:
                     cells.append(_pct(r["excess"], signed=True))
             o = orders[(explosive, burn)]
-            cells += [_num(o["order_fit"], ".2f"), _num(o["order_finest"], ".2f")]
+            cells += [number(o["order_fit"], ".2f"), number(o["order_finest"], ".2f")]
             lines.append(f"| {explosive} | {burn} | " + " | ".join(cells) + " |")
     ok = [r for r in peaks if r["failure"] is None and r["peak"] is not None]
     lit = [r for r in ok if r["peak"] >= LIT]
@@ -729,8 +714,8 @@ def _markdown(result: dict) -> str:
             continue
         x_l = None if r["X_peak"] is None else r["X_peak"] / cfg["L"]
         lines.append(
-            f"| {r['explosive']} | {r['burn']} | {_status_cell(r)} | {_num(r['peak'], '.4f')} "
-            f"| {_num(r['front_peak'], '.3f')} | {_num(x_l, '.3f')} | {_num(r['lambda_max'], '.3g')} "
+            f"| {r['explosive']} | {r['burn']} | {status_cell(r)} | {number(r['peak'], '.4f')} "
+            f"| {number(r['front_peak'], '.3f')} | {number(x_l, '.3f')} | {number(r['lambda_max'], '.3g')} "
             f"| {r['wall_s']:.1f} |"
         )
     lines += _gurney_markdown(result)
@@ -759,10 +744,10 @@ def _gurney_markdown(result: dict) -> list[str]:
     ]
     for r in rows:
         last = r[f"v_{times[-1]:g}"]
-        cells = " | ".join(_num(r[f"v_{t:g}"], ".1f") for t in times)
+        cells = " | ".join(number(r[f"v_{t:g}"], ".1f") for t in times)
         ratio = None if last is None else last / r["gurney"]
         lines.append(
-            f"| {r['interpolator']} | {r['cells']} | {_status_cell(r)} | {cells} | {_num(ratio, '.4f')} |"
+            f"| {r['interpolator']} | {r['cells']} | {status_cell(r)} | {cells} | {number(ratio, '.4f')} |"
         )
     lines += [
         "",
@@ -853,7 +838,7 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
                 [L / r["cells"] * 1e3 for r in rr],
                 [r[q] for r in rr],
                 "o-",
-                label=f"{o['interpolator']} (order {_num(order, '.2f')})",
+                label=f"{o['interpolator']} (order {number(order, '.2f')})",
             )
         hs = [L / c * 1e3 for c in sorted({r["cells"] for r in conv["rows"]})]
         ax.set_xticks(hs, [f"{h:.3g}" for h in hs])

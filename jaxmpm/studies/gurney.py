@@ -29,7 +29,7 @@ import numpy as np
 
 import jaxmpm as jm
 
-from ._runtime import machine, require_float64
+from ._runtime import machine, number, require_float64, run_status, status_cell
 
 CFL = 0.3
 """The Courant number of every run."""
@@ -56,13 +56,6 @@ def settings(small: bool = False) -> dict:
     out = dict(SMALL if small else FULL)
     out["names"] = ("cpdi", "mpq") if small else tuple(jm.INTERPOLATORS)
     return out
-
-
-def _status(sol) -> tuple[str, dict | None]:
-    fail = sol.failure()
-    if fail is None:
-        return "ok", None
-    return f"{fail['quantities'][0]} at step {fail['step']}", fail
 
 
 def run(cells: int, name: str, t_end: float, times, remedied: bool = True, strength: bool = False) -> dict:
@@ -100,7 +93,7 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
         saveat=jm.SaveAt(every=every, fields=("x", "v")),
         throw=False,
     )
-    status, fail = _status(sol)
+    status, fail = run_status(sol)
     body = sol.body
     ring = np.asarray(body.region) == 1
     m = np.asarray(body.m)[ring]
@@ -190,14 +183,6 @@ def resolution_order(rows: list[dict], t: float) -> dict | None:
     return dict(order=order, extrapolated=v[2] + d2 / (2.0**order - 1.0), t=t)
 
 
-def _num(x, fmt: str) -> str:
-    return "-" if x is None else format(x, fmt)
-
-
-def _status_cell(r: dict) -> str:
-    return "ok" if r["failure"] is None else f"broken down: {r['status']}"
-
-
 def _table(rows: list[dict], times, lead: tuple[str, ...]) -> list[str]:
     head = " | ".join(lead)
     lines = [
@@ -223,12 +208,12 @@ def _table(rows: list[dict], times, lead: tuple[str, ...]) -> list[str]:
         lines.append(
             "| "
             + " | ".join(cells)
-            + f" | {_status_cell(r)} | "
-            + " | ".join(_num(r[f"v_{t:g}"], ".1f") for t in times)
-            + f" | {_num(None if r_last is None else r_last / r['r0'], '.3f')}"
-            + f" | {_num(None if last is None else last / r['gurney'], '.4f')}"
-            + f" | {r['mass_ratio_particles']:.4f} | {_num(r['ring_spread'], '.2e')}"
-            + f" | {_num(r['spread_rms'], '.2e')} | {_num(r['folded'], 'd')} | {r['wall_s']:.1f} |"
+            + f" | {status_cell(r)} | "
+            + " | ".join(number(r[f"v_{t:g}"], ".1f") for t in times)
+            + f" | {number(None if r_last is None else r_last / r['r0'], '.3f')}"
+            + f" | {number(None if last is None else last / r['gurney'], '.4f')}"
+            + f" | {r['mass_ratio_particles']:.4f} | {number(r['ring_spread'], '.2e')}"
+            + f" | {number(r['spread_rms'], '.2e')} | {number(r['folded'], 'd')} | {r['wall_s']:.1f} |"
         )
     return lines
 
