@@ -154,6 +154,7 @@ class Fit:
         rejected: every rejected trial point (``"lm"``): start, iteration, values, and whether its run
             broke down (``broke``, with the reason in ``why`` for the first ones) or raised the loss.
         residuals: the best start's residuals ``x_model - x_data`` at the data times.
+        best_start: the index of the best start (the one ``fitted`` comes from) in ``starts``.
     """
 
     fitted: dict
@@ -178,6 +179,7 @@ class Fit:
     offsets: dict = dataclasses.field(default_factory=dict)
     rejected: list = dataclasses.field(default_factory=list)
     residuals: np.ndarray | None = None
+    best_start: int = 0
 
     def sample(self, members: int, seed: int = 0) -> dict:
         """Constants drawn from the fitted Gaussian, for ``jm.ensemble(scene, interp, vary=...)``.
@@ -901,6 +903,7 @@ def _finish(
         offsets=dict(model.offsets),
         rejected=list(run["rejected"]),
         residuals=np.asarray(r),
+        best_start=best,
     )
 
 

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import usage
+from helpers import calibration_case, usage
 
 import jaxmpm as jm
 from jaxmpm import calibrate as cal
@@ -313,6 +313,25 @@ def test_cli_blocked_fit_exits_3_naming_the_breakdown_and_pad(tmp_path, capsys):
     assert cap.out == "" and len(lines) == 1, cap.err
     assert "every step toward a lower loss is a run that breaks down" in lines[0]
     assert "particle left the grid" in lines[0] and "raise pad (now 52)" in lines[0]
+
+
+def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path, capsys):
+    scene, t, data, starts, dt = calibration_case()
+    path = _csv(tmp_path / "traj.csv", t, data)
+    argv = ["calibrate", "gas-slab", "cells=16", "h=0.0625", "pad=96", "--data", path, "--dt", repr(dt)]
+    for s in starts:
+        argv += ["--start", ",".join(f"{k}={v!r}" for k, v in s.items())]
+    assert main(argv + ["--devices", "1", "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["starts"] == starts and len(out["starts_fitted"]) == 4
+    assert list(out["failed_starts"]) == ["3"] and "broke down at step" in out["failed_starts"]["3"]
+    assert out["starts_fitted"][3] is None and out["best_start"] != 3
+    assert out["start"] == starts[out["best_start"]]
+    assert out["fitted"] == out["starts_fitted"][out["best_start"]]
+    assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=0.02)
+    assert out["fitted"]["P0"] == pytest.approx(3e5, rel=0.02)
+    usage(capsys, argv + ["--method", "adam", "--devices", "1"], "--devices spreads the starts of --method lm")
+    usage(capsys, argv[:-2] + ["--start", "gamma=1.5,rho0=2"], "--start: rho0 is not fitted")
 
 
 @pytest.mark.parametrize(

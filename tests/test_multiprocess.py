@@ -195,6 +195,39 @@ def test_command_line_run_over_two_processes(tmp_path, capsys):
     assert meta["devices"] == 4 and meta["complete"] and meta["step"] == 20
 
 
+def test_command_line_calibration_over_two_processes(tmp_path, capsys):
+    """``jaxmpm calibrate`` with four starts over two processes' four devices: the first process reports
+    the fit, the second nothing; the fit equals one process's to round-off, the start that breaks
+    down included."""
+    from jaxmpm.cli import main
+
+    _, t, data, starts, dt = calibration_case()
+    path = tmp_path / "traj.csv"
+    np.savetxt(path, np.c_[t, data], delimiter=",", header="t,x_free", comments="")
+    cmd = ["calibrate", "gas-slab", "cells=16", "h=0.0625", "pad=96", "--data", str(path), "--dt", repr(dt)]
+    for s in starts:
+        cmd += ["--start", ",".join(f"{k}={v!r}" for k, v in s.items())]
+    cmd += ["--json", "--no-progress"]
+    port = str(_free_port())
+    procs, outs = _two_processes(
+        lambda i: [sys.executable, "-m", "jaxmpm.cli", *cmd]
+        + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
+    )
+    assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
+    assert outs[1] == ("", "")  # the second process says nothing
+    many = json.loads(outs[0][0])
+    assert main(cmd) == 0
+    one = json.loads(capsys.readouterr().out)
+    assert list(many["failed_starts"]) == list(one["failed_starts"]) == ["3"]
+    assert many["best_start"] == one["best_start"] and many["iterations"] == one["iterations"]
+    assert many["starts_fitted"][3] is one["starts_fitted"][3] is None
+    for i in range(3):
+        for k, v in one["starts_fitted"][i].items():
+            assert many["starts_fitted"][i][k] == pytest.approx(v, rel=1e-12)
+    for k, v in one["std"].items():
+        assert many["std"][k] == pytest.approx(v, rel=1e-9)
+
+
 def test_ctrl_c_in_one_process_stops_both_after_the_same_chunk(tmp_path):
     """A run over two processes' devices: Ctrl-C (SIGINT) to the second process alone. Its chunks'
     collectives need both, so the processes agree after each chunk: both stop after the same one, the

@@ -166,19 +166,20 @@ def scalar(x) -> float | None:
     return None if x is None else float(x)
 
 
-def add_process_options(p, devices: bool = True) -> None:
+def add_process_options(p, devices: bool = True, spread: str = "the particles") -> None:
     """Options to spread a run over several devices and to start as one of several processes.
 
     Args:
         p: a subcommand's parser.
         devices: also ``--devices`` (a command that picks its devices itself has none).
+        spread: what ``--devices`` spreads, for its help.
     """
     g = p.add_argument_group("several devices and processes")
     if devices:
         g.add_argument(
             "--devices",
             metavar="K",
-            help="spread the particles over K devices, or 'all' (jax.devices(); the default with "
+            help=f"spread {spread} over K devices, or 'all' (jax.devices(); the default with "
             "several processes)",
         )
     g.add_argument(

@@ -14,7 +14,7 @@ from jaxmpm._simulate import prepare
 from jaxmpm.scenes.gas_slab import pad_for
 
 from . import _assign
-from ._common import UsageError, print_json
+from ._common import UsageError, add_process_options, devices_option, print_json, start_processes
 
 SCENES = ("gas-slab", "gurney-slab")
 """The scenes ``calibrate`` fits: the gas slab's free surface ``t,x_free``, the Gurney slab's plate
@@ -40,7 +40,13 @@ def add_parser(subparsers) -> None:
         help="header and columns t,x_free (gurney-slab: t,v_plate)",
     )
     p.add_argument("--fit", default="gamma,P0", metavar="NAME[,NAME...]", help="parameters to fit")
-    p.add_argument("--start", metavar="NAME=V[,NAME=V...]", help="start values (default: the scene's)")
+    p.add_argument(
+        "--start",
+        action="append",
+        metavar="NAME=V[,NAME=V...]",
+        help="start values (default: the scene's); repeat for several starts, fitted at once (under vmap, "
+        "or spread over --devices), the best one reported",
+    )
     p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
     p.add_argument(
         "--method", default="lm", choices=list(jm.calibrate.METHODS), help="lm: Levenberg-Marquardt (default)"
@@ -73,6 +79,7 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_process_options(p, spread="the starts (Levenberg-Marquardt)")
     p.set_defaults(handler=command)
 
 
@@ -229,24 +236,32 @@ def command(args) -> int:
             "calibrate fits a free-surface trajectory (gas-slab) or a plate's velocity (gurney-slab): "
             f"the scene must be one of {', '.join(SCENES)}, got {args.scene}"
         )
+    first = start_processes(args)
     scene = _assign.scene(args.scene, args.params)
     column = jm.calibrate.observable(scene)
     names = fit_names(scene, args.fit)
-    start = _assign.numbers(args.start, "--start") if args.start else {}
+    starts = [_assign.numbers(text, "--start") for text in args.start] if args.start else [{}]
     given = _assign.names(args.params)
-    for k in start:
-        if k not in names:
-            raise UsageError(f"--start: {k} is not fitted (fitted: {', '.join(names)})")
-        if k in given:
-            raise UsageError(
-                f"--start: {k} is also given as a scene parameter ({k}=...), which is its start: give it once"
-            )
+    for start in starts:
+        for k in start:
+            if k not in names:
+                raise UsageError(f"--start: {k} is not fitted (fitted: {', '.join(names)})")
+            if k in given:
+                raise UsageError(
+                    f"--start: {k} is also given as a scene parameter ({k}=...), which is its start: "
+                    "give it once"
+                )
     if args.iterations < 1:
         raise UsageError(f"--iterations must be an integer >= 1, got {args.iterations}")
-    try:
-        start_scene = type(scene)(**{**scene.parameter_values(), **start})
-    except ValueError as e:
-        raise UsageError(f"--start: {e}") from None
+    start_scenes = []
+    for start in starts:
+        try:
+            start_scenes.append(type(scene)(**{**scene.parameter_values(), **start}))
+        except ValueError as e:
+            raise UsageError(f"--start: {e}") from None
+    devices = devices_option(args)
+    if devices is not None and args.method != "lm":
+        raise UsageError(f"--devices spreads the starts of --method lm only, got --method {args.method}")
     positive = (("--dt", args.dt), ("--noise", args.noise), ("--max-relative-std", args.max_relative_std))
     for flag, value in positive:
         if value is not None:
@@ -259,11 +274,16 @@ def command(args) -> int:
     t, x = read_trajectory(args.data, column)
     # a grid for the gas slab's data and the start's expansion, with room for trial runs
     if "pad" not in given and column == "x_free":
-        reach = max(float(np.max(x)), start_scene.max_reach())
+        reach = max(float(np.max(x)), *(s.max_reach() for s in start_scenes))
         pad = max(scene.pad, pad_for(scene, 1.25 * reach))
         if pad != scene.pad:
             scene = type(scene)(**{**scene.parameter_values(), "pad": pad})
-    dt = args.dt if args.dt is not None else 0.2 * float(scene.h) / float(start_scene.wave_speed)
+    # CFL 0.2 at the fastest start
+    dt = (
+        args.dt
+        if args.dt is not None
+        else 0.2 * float(scene.h) / max(float(s.wave_speed) for s in start_scenes)
+    )
     interp = jm.INTERPOLATORS[args.interpolator]()
     viscosity = _assign.viscosity(args.viscosity)
     _check_model_run(scene, interp, args.data, t, dt)
@@ -276,7 +296,8 @@ def command(args) -> int:
                 t,
                 x,
                 fit=names,
-                starts=start,
+                starts=starts,
+                devices=devices,
                 dt=dt,
                 method=args.method,
                 iterations=args.iterations,
@@ -292,6 +313,10 @@ def command(args) -> int:
         print(f"jaxmpm: {e}", file=sys.stderr)
         return 3
 
+    if not first:  # the first process reports for all: they hold the same fit
+        return 0
+    start_values = [{n: float(s.get(n, float(getattr(scene, n)))) for n in names} for s in starts]
+
     def matrix(m):
         return {a: {b: _number(m[i, j]) for j, b in enumerate(fit.names)} for i, a in enumerate(fit.names)}
 
@@ -305,7 +330,13 @@ def command(args) -> int:
         method=args.method,
         dt=dt,
         pad=scene.pad,
-        start={n: float(start.get(n, float(getattr(scene, n)))) for n in names},
+        start=start_values[fit.best_start],
+        starts=start_values,
+        best_start=fit.best_start,
+        starts_fitted=[
+            None if i in fit.failed_starts else {n: float(fit.starts_fitted[n][i]) for n in names}
+            for i in range(len(starts))
+        ],
         loss_history=[float(v) for v in fit.history[:, 0]],
         converged=fit.converged,
         std={k: _number(v) for k, v in fit.std.items()},
