@@ -43,6 +43,9 @@ from .interpolators import (
     CPDI as CPDI,
 )
 from .interpolators import (
+    CPDI2 as CPDI2,
+)
+from .interpolators import (
     GIMP as GIMP,
 )
 from .interpolators import INTERPOLATORS as INTERPOLATORS

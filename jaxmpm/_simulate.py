@@ -536,7 +536,8 @@ def simulate(
 
     Args:
         scene: the scene and its parameters.
-        interpolator: ``SPQ()``, ``GIMP()``, ``GIMP(contiguous=True)``, ``CPDI()`` or ``MPQ()``.
+        interpolator: ``SPQ()``, ``GIMP()``, ``GIMP(contiguous=True)``, ``CPDI()``, ``MPQ()``, ... (one of
+            ``INTERPOLATORS``).
         dt: time step (> 0), with ``steps``, the number of steps (>= 0).
         t_end: instead of ``dt`` and ``steps``, run to this time with the CFL-limited step
             ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (default ``cfl = 0.5``) in a scan of

@@ -54,7 +54,7 @@ class Model(eqx.Module):
 
     Attributes:
         scene: the scene; its array fields are the differentiable parameters.
-        interpolator: SPQ, GIMP, CPDI or MPQ.
+        interpolator: how particles query the grid (one of ``INTERPOLATORS``).
         transfer: FLIP, PIC or APIC.
         artificial_cells: layers of artificial cells at each free end (0: none; static).
         cfl_limit: a step with ``dt > cfl_limit h / max(c + |v|)`` is a failure; ``None`` disables
@@ -576,7 +576,7 @@ def step(
         st_a = interp.stencil(grid, r0_a, x_a, F_a, None, gradients=False)
         mass_a, momentum_a = _transfer_to_grid(grid, transfer, st_a, x_a, v_a, C_a, m_a)
         mass_all, momentum = mass_all + mass_a, momentum + momentum_a
-        lo, hi = interp.extent(r0_a, x_a, F_a, None) if not interp.tracks_corners else (x_a, x_a)
+        lo, hi = interp.extent(r0_a, x_a, F_a, None)
         pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, src, _off_grid(grid, lo, hi))))
         if st_a.ok is not None:
             pre_checks.append((st_bits.STENCIL, _on_sources(body.n, src, ~st_a.ok)))

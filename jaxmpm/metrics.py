@@ -89,7 +89,7 @@ def domain_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
         body: the reference configuration.
 
     Returns:
-        MPQ's tracked corners where the run tracks them (one copy for all the particles that meet
+        The tracked corners where the run tracks them (MPQ, CPDI2: one copy for all the particles that meet
         at a corner), else those ``x`` and ``F`` imply (``implied_corners``).
     """
     if state.corners is not None:
@@ -101,7 +101,7 @@ def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Arra
     """How far apart the particles' copies of each corner of the reference lattice are.
 
     At every corner, the largest distance of a particle's copy from the copies' mean, over the
-    half-length ``r0``. Zero where neighbouring domains meet (MPQ's tracked corners, always); in 1D
+    half-length ``r0``. Zero where neighbouring domains meet (tracked corners, always); in 1D
     the magnitude of ``separation``. A gap and an overlap both count.
 
     Args:
@@ -671,7 +671,7 @@ def corner_jacobians(corners: Float[Array, "n corners dim"], body: Body) -> Floa
     reference cube at the corner, over its reference value.
 
     Args:
-        corners: each particle's corners (``domain_corners``: MPQ's tracked corners, or those ``x``
+        corners: each particle's corners (``domain_corners``: the tracked corners, or those ``x``
             and ``F`` imply).
         body: the reference configuration (``r0``).
 

@@ -1,8 +1,8 @@
 """A scene carries only what it needs: the compiled step holds nothing else.
 
-Optional physics (traction, body force, artificial cells) and optional state (MPQ's tracked corners,
-APIC's affine matrices) are decided by Python structure while tracing, so a step without them has
-none of their operations and none of their arrays in its jaxpr.
+Optional physics (traction, body force, artificial cells) and optional state (the tracked corners of
+MPQ and CPDI2, APIC's affine matrices) are decided by Python structure while tracing, so a step
+without them has none of their operations and none of their arrays in its jaxpr.
 """
 
 from collections.abc import Callable
@@ -100,13 +100,15 @@ def test_step_holds_only_declared_physics():
 
 
 @pytest.mark.parametrize("name", list(INTERPOLATORS))
-def test_corners_are_in_the_step_only_for_mpq(name):
-    """Only MPQ tracks the shared corners of the particle domains: an (n + 1, 1) array that no other
-    interpolator's step reads, makes or returns, and that MPQ's step carries from input to output."""
+def test_corners_are_in_the_step_only_where_tracked(name):
+    """Only the interpolators that track the shared corners of the particle domains (MPQ, CPDI2) have
+    them: an (n + 1, 1) array that no other interpolator's step reads, makes or returns, and that their
+    step carries from input to output."""
     state, jaxpr = step_jaxpr(Gas(), INTERPOLATORS[name])
     n_corners = CELLS * PPC + 1
     corner_arrays = [s for s in shapes(jaxpr) if s == (n_corners, 1)]
-    if name == "mpq":
+    assert INTERPOLATORS[name].tracks_corners == (name in ("mpq", "cpdi2"))
+    if INTERPOLATORS[name].tracks_corners:
         assert state.corners.shape == (n_corners, 1)
         in_shapes = [v.aval.shape for v in jaxpr.invars]
         out_shapes = [v.aval.shape for v in jaxpr.outvars]

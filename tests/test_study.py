@@ -5,6 +5,7 @@ import csv
 import pytest
 
 from jaxmpm.cli import main
+from jaxmpm.studies._methods import METHODS
 
 pytestmark = pytest.mark.slow
 
@@ -18,7 +19,7 @@ def test_study_talk_small(tmp_path, capsys):
             assert f"{q}_t{t}.png" in names
             assert (tmp_path / f"{q}_t{t}.png").stat().st_size > 10_000
     rows = list(csv.DictReader(open(tmp_path / "results.csv")))
-    assert len(rows) == 5 * 2 * 1 * 2  # methods x artificial cells x betas x times
+    assert len(rows) == len(METHODS) * 2 * 1 * 2  # methods x artificial cells x betas x times
     by = {(r["method"], r["artificial_cells"], r["t"]): r for r in rows}
     late = "0.00125"
     # The talk: MPQ with artificial cells is far more accurate than standard MPM at t = 0.00125.

@@ -13,7 +13,8 @@ pytestmark = pytest.mark.slow
 
 def test_study_blast_small(tmp_path, capsys):
     """Measured at 8 cells: CPDI with APIC and shear 0.5 runs through with a v_r L1 error of 0.1015
-    (ring radius error 0.0073, 0 folded); SPQ plain breaks down at 0.31 of two transits (non-finite
+    (ring radius error 0.0073, 0 folded), CPDI2 with 0.1009 (0.0076, 0 folded), while MPQ breaks down
+    at 0.45 of two transits; SPQ plain breaks down at 0.31 of two transits (non-finite
     state, F <= 0). The refinement 4 -> 8 cells gives a v_r L1 order of 0.61."""
     result = blast.main(out=str(tmp_path), small=True)
     capsys.readouterr()
@@ -45,6 +46,12 @@ def test_study_blast_small(tmp_path, capsys):
     assert best["v_r_L1"] < 0.15  # measured 0.1015
     assert best["ring_radius_error"] < 0.011 and best["folded"] == 0  # measured 0.0073, 0
     assert result["figures"]["cpdi"]["remedy"] == blast.BEST[1]
+    # CPDI2 (tracked, shared corners) with the same remedies runs through where MPQ breaks down: the
+    # two differ only in phi (CPDI2's corner average against MPQ's centre)
+    cpdi2 = next(r for r in result["rows"] if (r["interpolator"], r["remedy"]) == ("cpdi2", blast.BEST[1]))
+    mpq = next(r for r in result["rows"] if (r["interpolator"], r["remedy"]) == ("mpq", blast.BEST[1]))
+    assert cpdi2["finished"] and cpdi2["folded"] == 0 and not mpq["finished"]
+    assert cpdi2["v_r_L1"] < 0.15 and cpdi2["ring_radius_error"] < 0.011  # measured 0.1009, 0.0076
 
     ref = saved["refinement"]
     assert [r["cells"] for r in ref["rows"]] == [4, 8] and all(r["finished"] for r in ref["rows"])

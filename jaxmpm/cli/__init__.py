@@ -26,7 +26,9 @@ def parser() -> Parser:
     Returns:
         The parser; its errors raise ``UsageError``.
     """
-    p = Parser(prog="jaxmpm", description="Differentiable MPM in JAX: SPQ, GIMP, CPDI and MPQ side by side.")
+    p = Parser(
+        prog="jaxmpm", description="Differentiable MPM in JAX: SPQ, GIMP, CPDI, MPQ and more, side by side."
+    )
     subparsers = p.add_subparsers(dest="command", required=True, parser_class=Parser)
     for command in _COMMANDS:
         command.add_parser(subparsers)

@@ -42,9 +42,9 @@ class AbstractInterpolator(eqx.Module):
     Attributes:
         name: the name the interpolator is known by (``INTERPOLATORS``, ``--interpolator``, a saved
             run's metadata).
-        tracks_corners: whether the particles' domain corners are part of the state (MPQ).
+        tracks_corners: whether the particles' domain corners are part of the state (MPQ, CPDI2).
         stencil_width: grid nodes per axis that one particle's weights reach (their product over the
-            axes is the stencil; for CPDI and MPQ, two corners per axis of two nodes each); it sizes
+            axes is the stencil; for CPDI, MPQ and CPDI2, two corners per axis of two nodes each); it sizes
             the memory estimate of a run.
     """
 
@@ -69,7 +69,7 @@ class AbstractInterpolator(eqx.Module):
             r0: initial half-lengths of the particle domains.
             x: particle centres.
             F: deformation gradients.
-            corners: the particles' own ``2^dim`` corners (MPQ; ``None`` otherwise).
+            corners: the particles' own ``2^dim`` tracked corners (MPQ, CPDI2; ``None`` otherwise).
             gradients: whether to compute ``dphi`` as well.
 
         Returns:
@@ -87,14 +87,14 @@ class AbstractInterpolator(eqx.Module):
         v_new: Float[Array, "n_nodes dim"],
         dt: Float[Array, ""],
     ) -> tuple[Float[Array, "n dim dim"], Float[Array, "nc dim"] | None]:
-        """The new deformation gradients (and MPQ's new corners) from the new grid velocity.
+        """The new deformation gradients (and the new tracked corners) from the new grid velocity.
 
         Args:
             grid: the background grid.
             body: the reference configuration.
             stencil: the step's stencil of the particles.
             F: deformation gradients at the start of the step.
-            corners: the body's tracked corners (MPQ; ``None`` otherwise).
+            corners: the body's tracked corners (MPQ, CPDI2; ``None`` otherwise).
             v_new: the grid velocity at the end of the step.
             dt: the time step.
 
@@ -116,7 +116,7 @@ class AbstractInterpolator(eqx.Module):
             r0: initial half-lengths of the particle domains.
             x: particle centres.
             F: deformation gradients.
-            corners: the particles' own ``2^dim`` corners (MPQ; ``None`` otherwise).
+            corners: the particles' own ``2^dim`` tracked corners (MPQ, CPDI2; ``None`` otherwise).
 
         Returns:
             ``(lo, hi)``.

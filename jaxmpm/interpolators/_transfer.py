@@ -16,6 +16,7 @@ from jaxtyping import Array, Float, Int
 
 from .._util import adjugate, contract, corner_signs, det
 from ..grid import Grid
+from ..particles import Body
 from ._base import Stencil
 
 
@@ -185,6 +186,40 @@ def multiplicative_F_update(
     """
     L = velocity_gradient(grid, stencil, v_new)
     return F + dt * contract("nab,nbc->nac", L, F)
+
+
+def tracked_corner_update(
+    grid: Grid,
+    body: Body,
+    corners: Float[Array, "nc dim"],
+    v_new: Float[Array, "n_nodes dim"],
+    dt: Float[Array, ""],
+) -> tuple[Float[Array, "n dim dim"], Float[Array, "nc dim"]]:
+    """Move the tracked domain corners with the grid velocity and read ``F`` off them, the update of
+    MPQ (Bonifasi-Lista, Brannon & Wiskin 2013) and CPDI2 (Sadeghirad, Brannon & Guilkey 2013).
+
+    Every corner, stored once for all the particles that meet at it, moves ``x_c += dt sum_i S_i(x_c)
+    v_i``; then ``F = D diag(1 / (2^dim r0))`` with ``D`` of ``corner_matrix``, the mean gradient of
+    the map from the reference cube ``x_p + diag(r0) [-1, 1]^dim`` to the corners (exact for a
+    parallelogram; in 1D ``(x_c2 - x_c1) / (2 r0)``).
+
+    Args:
+        grid: the background grid.
+        body: the reference configuration (its ``r0`` and ``particle_corners``).
+        corners: the body's tracked corners at the start of the step.
+        v_new: nodal velocities at the end of the step.
+        dt: the time step.
+
+    Returns:
+        ``(F_new, corners_new)``.
+    """
+    cidx, s, _ = points_stencil(grid, corners, gradients=False)
+    v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new))
+    corners = corners + dt * v_c
+    D = corner_matrix(body.particle_corners(corners))  # (n, dim, dim)
+    d = D.shape[-1]
+    F = D / ((2.0**d) * body.r0)[:, None, :]
+    return F, corners
 
 
 def any_axis(mask):

@@ -5,9 +5,8 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._util import contract
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import corner_matrix, domain_gradient, points_stencil
+from ._transfer import corner_matrix, domain_gradient, points_stencil, tracked_corner_update
 
 
 class MPQ(AbstractInterpolator):
@@ -17,10 +16,11 @@ class MPQ(AbstractInterpolator):
     internal force uses the domain form on the tracked corners, ``dphi_ip = sum_c S_i(x_c) D^-T s_c``
     with ``D = sum_c x_c s_c^T`` (``domain_gradient``; in 1D ``(S_i(c2) - S_i(c1)) / (c2 - c1)``).
     After the grid update every corner moves, ``x_c += dt sum_i S_i(x_c) v_i^{n+1}``, and ``F = D
-    diag(1 / (2^dim r0))``: in 1D ``(x_c2 - x_c1) / (2 r0)`` (Bonifasi-Lista, Brannon & Wiskin 2013,
-    "Algorithm of MPQ"), in 2D and 3D the mean gradient of the map from the reference cube to the
-    tracked corners, exact for a parallelogram (the corner tracking of CPDI2, Sadeghirad, Brannon &
-    Guilkey 2013). Neighbours meet at one corner, stored once, so domains stay contiguous.
+    diag(1 / (2^dim r0))`` (``tracked_corner_update``): in 1D ``(x_c2 - x_c1) / (2 r0)``
+    (Bonifasi-Lista, Brannon & Wiskin 2013, "Algorithm of MPQ"), in 2D and 3D the mean gradient of the
+    map from the reference cube to the tracked corners, exact for a parallelogram (the corner tracking
+    of CPDI2, Sadeghirad, Brannon & Guilkey 2013, which ``CPDI2`` implements). Neighbours meet at one
+    corner, stored once, so domains stay contiguous.
     """
 
     name: ClassVar[str] = "mpq"
@@ -40,16 +40,12 @@ class MPQ(AbstractInterpolator):
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F
-        cidx, s, _ = points_stencil(grid, corners, gradients=False)
-        v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new))
-        corners = corners + dt * v_c
-        D = corner_matrix(body.particle_corners(corners))  # (n, dim, dim)
-        d = D.shape[-1]
-        F = D / ((2.0**d) * body.r0)[:, None, :]
-        return F, corners
+        return tracked_corner_update(grid, body, corners, v_new, dt)
 
     def extent(self, r0, x, F, corners):
         del r0, F
+        if corners is None:  # a particle without tracked corners (an artificial one) queries at x
+            return x, x
         if corners.shape[1] == 2:  # 1D: the corners are ordered, left then right
             return jnp.minimum(x, corners[:, 0]), jnp.maximum(x, corners[:, 1])
         parts = [x] + [corners[:, i] for i in range(corners.shape[1])]

@@ -6,7 +6,7 @@ and 100 (``P0 = ratio p_atm``, ``p_atm`` = 1 bar, 1.5 kg/m^3 of gas, gamma 1.4, 
 ``jaxmpm.BlastSphere`` (3D, an octant) at 10. Every run goes to two sound transits of the radius,
 ``2 radius / c0``, with ``cfl`` 0.3, two particles per cell and axis, 32 cells across the radius of
 the disk and 16 of the sphere. The configurations are every interpolator of ``jaxmpm.INTERPOLATORS``
-plain (FLIP, USL, no remedy), and CPDI and MPQ with each remedy: MUSL, APIC, J-bar
+plain (FLIP, USL, no remedy), and CPDI, MPQ and CPDI2 with each remedy: MUSL, APIC, J-bar
 (``volume_average="node"``), a shear viscosity (``c_shear`` 0.5, no bulk terms) and APIC with that
 shear viscosity.
 
@@ -61,7 +61,7 @@ REMEDIES = {
 }
 """Each remedy's settings: ``transfer`` (a key of ``jaxmpm.TRANSFERS``, default FLIP), ``ordering``
 (default USL), ``volume_average`` (J-bar) and ``shear`` (``c_shear`` of a viscosity without bulk terms)."""
-REMEDIED = ("cpdi", "mpq")
+REMEDIED = ("cpdi", "mpq", "cpdi2")
 """The interpolators run with every remedy (the others plain only)."""
 BEST = ("cpdi", f"APIC + shear {SHEAR:g}")
 """The configuration refined."""
@@ -76,7 +76,14 @@ FULL = dict(
 )
 SMALL = dict(
     cases=(("disk", 10.0, 8),),
-    configs=(("spq", "plain"), ("cpdi", "plain"), BEST, ("mpq", "plain"), ("mpq", BEST[1])),
+    configs=(
+        ("spq", "plain"),
+        ("cpdi", "plain"),
+        BEST,
+        ("mpq", "plain"),
+        ("mpq", BEST[1]),
+        ("cpdi2", BEST[1]),
+    ),
     refinement=(4, 8),
 )
 MEASURES = ("v_r_L1", "rho_L1", "ring_radius_error", "spread_max", "rotation_max", "folded")
@@ -87,10 +94,10 @@ def configurations(small: bool = False) -> tuple[tuple[str, str], ...]:
     """The study's configurations, ``(interpolator, remedy)``.
 
     Args:
-        small: the reduced set (SPQ and CPDI plain, MPQ plain, CPDI and MPQ with APIC and shear).
+        small: the reduced set (SPQ, CPDI and MPQ plain, CPDI, MPQ and CPDI2 with APIC and shear).
 
     Returns:
-        Every interpolator of ``jaxmpm.INTERPOLATORS`` plain, then CPDI and MPQ with each remedy of
+        Every interpolator of ``jaxmpm.INTERPOLATORS`` plain, then those of ``REMEDIED`` with each remedy of
         ``REMEDIES`` (the full study); ``SMALL["configs"]`` (the reduced one).
     """
     if small:
@@ -613,8 +620,9 @@ def main(out: str, small: bool = False) -> dict:
 
     Returns:
         ``settings``, ``scenes`` (``scene_info`` of each case), ``rows`` (one per case and
-        configuration, ``run_row``'s), ``refinement`` (rows and orders), ``figure_rows`` (the best CPDI
-        and MPQ rows at 10:1, ``best``), ``figures`` (their configurations), ``machine`` and ``wall_s``.
+        configuration, ``run_row``'s), ``refinement`` (rows and orders), ``figure_rows`` (the best CPDI,
+        MPQ and CPDI2 rows at 10:1, ``best``), ``figures`` (their configurations), ``machine`` and
+        ``wall_s``.
 
     Raises:
         RuntimeError: float64 is off.
