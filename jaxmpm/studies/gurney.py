@@ -13,8 +13,8 @@ gives the velocity the tube tends to as the products expand without limit, ``sqr
 3. **Strength.** The hydrodynamic ring against one with the steel's strength (``strength=True``).
 
 Every run also reports the angular spread of the radial velocity (``jaxmpm.metrics.angular_spread``,
-detrended, over the whole body: a radially symmetric motion has none) and its folded domains (CPDI and
-MPQ). A run that broke down is reported as such and none of its numbers is used.
+detrended, over the whole body: a radially symmetric motion has none) and its folded domains (CPDI,
+MPQ and CPDI2). A run that broke down is reported as such and none of its numbers is used.
 ``jaxmpm study gurney --out DIR`` writes ``gurney.md``, ``gurney.json`` and the figures
 ``ring_velocity.png`` and ``ring_particles.png``.
 """
@@ -126,7 +126,7 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
         ring_spread = _ring_spread(x[-1], v[-1], m)
         centre = np.zeros(2)
         spread = float(jm.metrics.angular_spread(sol.state, body, centre, cells, detrend=True)["rms"])
-        if name in ("cpdi", "mpq"):
+        if name in ("cpdi", "mpq", "cpdi2"):  # the interpolators whose domains can fold
             corners = jm.metrics.domain_corners(sol.state, body)
             folded = int(jm.metrics.folded_domains(corners, body))
     row.update(
@@ -235,9 +235,8 @@ def _markdown(result: dict) -> str:
         f"radial velocity over {SECTORS} equal sectors of the quarter, over its mean, at the last time. The "
         "angular spread is that of the radial velocity of the whole body (products and ring) at equal "
         "reference radius, detrended, RMS over radial bins of one cell; both are 0 for a radially "
-        "symmetric motion. folded "
-        "counts the CPDI or MPQ domains turned inside out. A run that broke down is marked `broken down` "
-        "and none of its numbers is used.",
+        "symmetric motion. folded counts the CPDI, MPQ or CPDI2 domains turned inside out. A run that "
+        "broke down is marked `broken down` and none of its numbers is used.",
         "",
         f"## 1. Resolution (CPDI, APIC and the shear viscosity c_shear = {C_SHEAR:g})",
         "",
