@@ -330,7 +330,9 @@ def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path
     assert out["fitted"] == out["starts_fitted"][out["best_start"]]
     assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=0.02)
     assert out["fitted"]["P0"] == pytest.approx(3e5, rel=0.02)
-    usage(capsys, argv + ["--method", "adam", "--devices", "1"], "--devices spreads the starts of --method lm")
+    usage(
+        capsys, argv + ["--method", "adam", "--devices", "1"], "--devices spreads the starts of --method lm"
+    )
     usage(capsys, argv[:-2] + ["--start", "gamma=1.5,rho0=2"], "--start: rho0 is not fitted")
 
 

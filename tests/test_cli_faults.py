@@ -61,6 +61,7 @@ def test_a_broken_run_to_an_end_time_stops_computing(capsys, monkeypatch):
     assert out["steps_taken"] == 3 and out["failure"]["step"] == 4 and out["t_end"] == 0.01
 
 
+@pytest.mark.slow
 def test_a_chunked_run_equals_one_scan(capsys):
     """A run too long for one chunk (a wide grid makes each step slow) equals ``simulate`` bit for bit."""
     import numpy as np

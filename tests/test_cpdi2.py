@@ -19,6 +19,8 @@ from jaxmpm import metrics
 from jaxmpm._step import particle_to_grid
 from jaxmpm.interpolators._transfer import corner_matrix, domain_gradient
 
+pytestmark = pytest.mark.slow
+
 BETA, DT = 200.0, 1e-5
 
 

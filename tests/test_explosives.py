@@ -435,6 +435,7 @@ def test_line_detonators_light_by_the_distance_to_the_line():
             ex.ProgrammedBurn(reactant=None, products=products, D=2.0, width=0.1, J_CJ=0.75, **kwargs)
 
 
+@pytest.mark.slow
 def test_cj_energy_implies_the_given_detonation_speed_and_is_differentiable():
     """cj_energy(products, rho0, D) is the e0 at which the products imply D: for each handbook row at its
     tabulated D it returns the row's E0 to the row's own consistency (0.2%), the CJ state it implies has

@@ -69,6 +69,7 @@ def test_acoustic_speed_matches_the_closed_forms(name):
         assert float(mat.acoustic_speed(F, rho0)) == pytest.approx(float(mat.sound_speed(F, rho0)), rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 def test_acoustic_speed_in_2d_and_3d(dim):
     rho0 = jnp.asarray(2.5)

@@ -210,8 +210,10 @@ def test_command_line_calibration_over_two_processes(tmp_path, capsys):
     cmd += ["--json", "--no-progress"]
     port = str(_free_port())
     procs, outs = _two_processes(
-        lambda i: [sys.executable, "-m", "jaxmpm.cli", *cmd]
-        + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
+        lambda i: (
+            [sys.executable, "-m", "jaxmpm.cli", *cmd]
+            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
+        )
     )
     assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
     assert outs[1] == ("", "")  # the second process says nothing

@@ -8,6 +8,8 @@ import pytest
 import jaxmpm as jm
 from jaxmpm import reference
 
+pytestmark = pytest.mark.slow
+
 GAS = dict(P0=1.0e6, gamma=1.4, p_atm=1.0e5, rho0=1.5, radius=0.5)  # 10:1, a 0.5 m charge
 C0 = float(np.sqrt(GAS["gamma"] * GAS["P0"] / GAS["rho0"]))
 TRANSIT = GAS["radius"] / C0  # one sound transit of the radius

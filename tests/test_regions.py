@@ -350,6 +350,7 @@ def test_cli_json_carries_density_pressure_energy_and_region(capsys):
     assert set(out["errors"]) >= {"rho_L1", "u_L1", "p_L1", "e_L1"}
 
 
+@pytest.mark.slow
 def test_vtk_frames_carry_region_energy_and_internal_variables(tmp_path):
     scene = jm.Bodies(
         parts=(

@@ -125,6 +125,7 @@ def test_a_contact_at_rest_stays_still_to_round_off(interpolator):
     np.testing.assert_allclose(np.asarray(jm.pressure(sol.state)), 1.0, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_gradients_of_a_shock_tube_match_central_differences():
     """d/d(p_l) and d/d(gamma) of the density misfit against Sod's exact density (held fixed), fixed
     steps (a run to an end time changes its step count, a kink, with the parameters)."""

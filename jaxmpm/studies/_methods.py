@@ -2,8 +2,8 @@
 
 import jaxmpm as jm
 
-_LABELS = {"spq": "SPQ", "gimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI", "mpq": "MPQ", "cpdi2": "CPDI2", "bspline": "B-spline"}
+_LABELS = {"spq": "SPQ", "gimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI", "mpq": "MPQ", "cpdi2": "CPDI2"}
 
 METHODS = {_LABELS.get(name, name.upper()): make for name, make in jm.INTERPOLATORS.items()}
 """Every interpolator of ``jaxmpm.INTERPOLATORS``, in its order, by its label in the studies' tables
-(``uGIMP`` is ``gimp``, ``cpGIMP`` is ``cpgimp``, ``B-spline`` is ``bspline``), to the callable that makes it."""
+(``uGIMP`` is ``gimp``, ``cpGIMP`` is ``cpgimp``), to the callable that makes it."""
