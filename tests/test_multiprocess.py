@@ -114,6 +114,25 @@ def _two_processes(command):
     return procs, outs
 
 
+def _cli_over_two_processes(argv):
+    """Run ``jaxmpm argv`` as two processes joined by ``--coordinator --processes --process-id`` (what
+    ``--distributed`` reads from SLURM): both exit 0 and the second prints nothing.
+
+    Returns:
+        The first process's stdout (the report).
+    """
+    port = str(_free_port())
+    procs, outs = _two_processes(
+        lambda i: (
+            [sys.executable, "-m", "jaxmpm.cli", *argv]
+            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
+        )
+    )
+    assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
+    assert outs[1] == ("", "")  # the second process says nothing
+    return outs[0][0]
+
+
 def test_two_processes_equal_one(tmp_path):
     script = tmp_path / "worker.py"
     script.write_text(WORKER)
@@ -172,18 +191,9 @@ def test_command_line_run_over_two_processes(tmp_path, capsys):
     nothing; the report equals one process's to round-off."""
     from jaxmpm.cli import main
 
-    port = str(_free_port())
     run = ["run", "gas-slab", "cells=30", "h=0.0333333333", "pad=60", "--interpolator", "cpdi"]
     run += ["--dt", "5e-6", "--steps", "20", "--json"]
-    procs, outs = _two_processes(
-        lambda i: (
-            [sys.executable, "-m", "jaxmpm.cli", *run, "--out", str(tmp_path / "run.npz"), "--chunk", "8"]
-            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
-        )
-    )
-    assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
-    assert outs[1] == ("", "")  # the second process says nothing
-    many = json.loads(outs[0][0])
+    many = json.loads(_cli_over_two_processes([*run, "--out", str(tmp_path / "run.npz"), "--chunk", "8"]))
     assert main(run) == 0
     one = json.loads(capsys.readouterr().out)
     assert many["devices"] == 4 and "devices" not in one and many["out"] == str(tmp_path / "run.npz")
@@ -208,16 +218,7 @@ def test_command_line_calibration_over_two_processes(tmp_path, capsys):
     for s in starts:
         cmd += ["--start", ",".join(f"{k}={v!r}" for k, v in s.items())]
     cmd += ["--json", "--no-progress"]
-    port = str(_free_port())
-    procs, outs = _two_processes(
-        lambda i: (
-            [sys.executable, "-m", "jaxmpm.cli", *cmd]
-            + ["--coordinator", f"localhost:{port}", "--processes", "2", "--process-id", str(i)]
-        )
-    )
-    assert [p.returncode for p in procs] == [0, 0], outs[0][1][-2000:] + outs[1][1][-2000:]
-    assert outs[1] == ("", "")  # the second process says nothing
-    many = json.loads(outs[0][0])
+    many = json.loads(_cli_over_two_processes(cmd))
     assert main(cmd) == 0
     one = json.loads(capsys.readouterr().out)
     assert list(many["failed_starts"]) == list(one["failed_starts"]) == ["3"]
