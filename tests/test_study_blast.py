@@ -15,7 +15,7 @@ def test_study_blast_small(tmp_path, capsys):
     """Measured at 8 cells: CPDI with APIC and shear 0.5 runs through with a v_r L1 error of 0.1015
     (ring radius error 0.0073, 0 folded), CPDI2 with 0.1009 (0.0076, 0 folded), while MPQ breaks down
     at 0.45 of two transits; SPQ plain breaks down at 0.31 of two transits (non-finite
-    state, F <= 0). The refinement 4 -> 8 cells gives a v_r L1 order of 0.61."""
+    state, F <= 0). The refinement 4 -> 8 cells gives a v_r L1 order of 0.61 (CPDI), 0.63 (CPDI2)."""
     result = blast.main(out=str(tmp_path), small=True)
     capsys.readouterr()
     assert (tmp_path / "table.md").stat().st_size > 1000 and (tmp_path / "blast.json").stat().st_size > 1000
@@ -58,3 +58,8 @@ def test_study_blast_small(tmp_path, capsys):
     assert ref["rows"][1]["v_r_L1"] == best["v_r_L1"]  # the table's run, reused
     assert 0.3 < ref["orders"]["v_r_L1_order_fit"] < 1.0  # measured 0.61
     assert "## Refinement: cpdi APIC + shear 0.5" in text and "Fitted orders: v_r L1 " in text
+    tracked = saved["refinement_tracked"]  # CPDI2 with the same remedy, refined the same way
+    assert [r["cells"] for r in tracked["rows"]] == [4, 8] and all(r["finished"] for r in tracked["rows"])
+    assert tracked["rows"][1]["v_r_L1"] == cpdi2["v_r_L1"]  # the table's run, reused
+    assert 0.3 < tracked["orders"]["v_r_L1_order_fit"] < 1.0  # measured 0.63
+    assert "## Refinement: cpdi2 APIC + shear 0.5" in text and text.count("Fitted orders: v_r L1 ") == 2

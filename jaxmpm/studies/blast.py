@@ -20,7 +20,8 @@ last good state: it is reported as broken down, with when (a fraction of two tra
 (``jaxmpm.status.describe``), and its measures are those of that state, marked so.
 
 Then the best CPDI configuration at 10:1, APIC with shear viscosity 0.5, refined (16, 32 and 64 cells
-across the radius) for the observed order of its errors.
+across the radius) for the observed order of its errors, and CPDI2 (the tracked-corner method) with
+the same remedy, refined the same way.
 
 ``jaxmpm study blast --out DIR`` writes ``table.md``, ``blast.json`` and the figures
 ``radial_velocity.png`` and ``domains.png``.
@@ -64,7 +65,9 @@ REMEDIES = {
 REMEDIED = ("cpdi", "mpq", "cpdi2")
 """The interpolators run with every remedy (the others plain only)."""
 BEST = ("cpdi", f"APIC + shear {SHEAR:g}")
-"""The configuration refined."""
+"""The configuration refined (``refinement``)."""
+TRACKED = ("cpdi2", BEST[1])
+"""The tracked-corner configuration refined (``refinement_tracked``)."""
 PAD_RADII = {("disk", 1.5): 2.5, ("disk", 10.0): 2.5, ("disk", 100.0): 6.0, ("sphere", 10.0): 2.0}
 """The grid beyond the charge, in radii, of each scene: the reference's free surface reaches 1.26, 3.0
 and 4.9 radii for the disk at 1.5, 10 and 100 by two transits, and 2.3 for the sphere at 10. The grid
@@ -82,7 +85,7 @@ SMALL = dict(
         BEST,
         ("mpq", "plain"),
         ("mpq", BEST[1]),
-        ("cpdi2", BEST[1]),
+        TRACKED,
     ),
     refinement=(4, 8),
 )
@@ -111,13 +114,13 @@ def settings(small: bool = False) -> dict:
     """The study's sizes.
 
     Args:
-        small: the reduced version (the disk at 10:1 only, 8 cells across the radius, five
-            configurations, refinement at 4 and 8 cells).
+        small: the reduced version (the disk at 10:1 only, 8 cells across the radius, six
+            configurations, refinements at 4 and 8 cells).
 
     Returns:
         ``dict(cases, configs, refinement)``: the scenes as ``(kind, ratio, cells)`` (kind ``"disk"`` or
         ``"sphere"``, cells across the radius), the configurations (``configurations``) and the cells of
-        the refinement of ``BEST`` (on the disk at 10:1).
+        the refinements of ``BEST`` and ``TRACKED`` (on the disk at 10:1).
     """
     out = dict(SMALL if small else FULL)
     out["configs"] = configurations(small)
@@ -358,13 +361,14 @@ def observed_orders(h, e) -> tuple[float | None, list[float | None]]:
     return fit, pairs
 
 
-def refinement(cells_list, rows: list[dict], refs: References) -> dict:
-    """``BEST`` on the disk at 10:1, refined.
+def refinement(cells_list, rows: list[dict], refs: References, config: tuple[str, str] = BEST) -> dict:
+    """A configuration on the disk at 10:1, refined.
 
     Args:
         cells_list: cells across the radius, coarse to fine.
         rows: the study's rows (a run already done is reused).
         refs: the references (filled).
+        config: ``(interpolator, remedy)``: ``BEST`` or ``TRACKED``.
 
     Returns:
         ``dict(rows, orders)``: one row per resolution (``run_row``'s) and, per measure of ``v_r_L1``,
@@ -377,9 +381,9 @@ def refinement(cells_list, rows: list[dict], refs: References) -> dict:
             r
             for r in rows
             if (r["kind"], r["ratio"], r["cells"], r["interpolator"], r["remedy"])
-            == ("disk", 10.0, cells, *BEST)
+            == ("disk", 10.0, cells, *config)
         ]
-        out.append(done[0] if done else run_row("disk", 10.0, cells, *BEST, refs))
+        out.append(done[0] if done else run_row("disk", 10.0, cells, *config, refs))
     h = [1.0 / r["cells"] for r in out]
     orders = {}
     for q in ("v_r_L1", "rho_L1", "ring_radius_error"):
@@ -497,36 +501,37 @@ def _markdown(result: dict) -> str:
                 f"| {_measure_cell(r, 'rotation_max', '.3f')} | {_measure_cell(r, 'folded', '')} "
                 f"| {r['steps']} | {r['wall_s']:.1f} |"
             )
-    ref = result["refinement"]
-    o = ref["orders"]
-    lines += [
-        "",
-        f"## Refinement: {BEST[0]} {BEST[1]}, disk at 10:1",
-        "",
-        "Observed orders against h = radius / cells: the order of each successive pair on the finer row, "
-        "and the least-squares fit over the runs that ran through.",
-        "",
-        "| cells | particles | status | v_r L1 | order | rho L1 | order | ring r error | order | steps taken "
-        "| wall s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for k, r in enumerate(ref["rows"]):
-        pair = {
-            q: (None if k == 0 else o[f"{q}_order_pairs"][k - 1])
-            for q in ("v_r_L1", "rho_L1", "ring_radius_error")
-        }
-        lines.append(
-            f"| {r['cells']} | {r['particles']} | {status_cell(r)} | {_measure_cell(r, 'v_r_L1', '.4f')} "
-            f"| {_num(pair['v_r_L1'], '.2f')} | {_measure_cell(r, 'rho_L1', '.4f')} "
-            f"| {_num(pair['rho_L1'], '.2f')} | {_measure_cell(r, 'ring_radius_error', '.4f')} "
-            f"| {_num(pair['ring_radius_error'], '.2f')} | {r['steps']} | {r['wall_s']:.1f} |"
-        )
-    lines += [
-        "",
-        f"Fitted orders: v_r L1 {_num(o['v_r_L1_order_fit'], '.2f')}, "
-        f"rho L1 {_num(o['rho_L1_order_fit'], '.2f')}, "
-        f"ring radius {_num(o['ring_radius_error_order_fit'], '.2f')}.",
-    ]
+    for key, config in (("refinement", BEST), ("refinement_tracked", TRACKED)):
+        ref = result[key]
+        o = ref["orders"]
+        lines += [
+            "",
+            f"## Refinement: {config[0]} {config[1]}, disk at 10:1",
+            "",
+            "Observed orders against h = radius / cells: the order of each successive pair on the finer "
+            "row, and the least-squares fit over the runs that ran through.",
+            "",
+            "| cells | particles | status | v_r L1 | order | rho L1 | order | ring r error | order "
+            "| steps taken | wall s |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for k, r in enumerate(ref["rows"]):
+            pair = {
+                q: (None if k == 0 else o[f"{q}_order_pairs"][k - 1])
+                for q in ("v_r_L1", "rho_L1", "ring_radius_error")
+            }
+            lines.append(
+                f"| {r['cells']} | {r['particles']} | {status_cell(r)} | {_measure_cell(r, 'v_r_L1', '.4f')} "
+                f"| {_num(pair['v_r_L1'], '.2f')} | {_measure_cell(r, 'rho_L1', '.4f')} "
+                f"| {_num(pair['rho_L1'], '.2f')} | {_measure_cell(r, 'ring_radius_error', '.4f')} "
+                f"| {_num(pair['ring_radius_error'], '.2f')} | {r['steps']} | {r['wall_s']:.1f} |"
+            )
+        lines += [
+            "",
+            f"Fitted orders: v_r L1 {_num(o['v_r_L1_order_fit'], '.2f')}, "
+            f"rho L1 {_num(o['rho_L1_order_fit'], '.2f')}, "
+            f"ring radius {_num(o['ring_radius_error_order_fit'], '.2f')}.",
+        ]
     figs = result["figures"]
     lines += ["", "Figures (disk at 10:1, the best configuration of each interpolator):", ""]
     for name, f in figs.items():
@@ -620,7 +625,8 @@ def main(out: str, small: bool = False) -> dict:
 
     Returns:
         ``settings``, ``scenes`` (``scene_info`` of each case), ``rows`` (one per case and
-        configuration, ``run_row``'s), ``refinement`` (rows and orders), ``figure_rows`` (the best CPDI,
+        configuration, ``run_row``'s), ``refinement`` and ``refinement_tracked`` (rows and orders of
+        ``BEST`` and ``TRACKED``), ``figure_rows`` (the best CPDI,
         MPQ and CPDI2 rows at 10:1, ``best``), ``figures`` (their configurations), ``machine`` and
         ``wall_s``.
 
@@ -648,7 +654,8 @@ def main(out: str, small: bool = False) -> dict:
         settings=dict(cfg, small=small, cfl=CFL, p_atm=P_ATM, transits=TRANSITS, shear=SHEAR),
         scenes=[scene_info(kind, ratio, cells, refs) for kind, ratio, cells in cfg["cases"]],
         rows=rows,
-        refinement=refinement(cfg["refinement"], rows, refs),
+        refinement=refinement(cfg["refinement"], rows, refs, BEST),
+        refinement_tracked=refinement(cfg["refinement"], rows, refs, TRACKED),
         figure_rows=figure_rows,
         figures={
             r["interpolator"]: dict(remedy=r["remedy"], finished=r["finished"], failure=r["failure"])
@@ -662,7 +669,8 @@ def main(out: str, small: bool = False) -> dict:
     (outdir / "table.md").write_text(text)
     saved = {k: v for k, v in result.items() if k != "figure_rows"}
     saved["rows"] = _jsonable(rows)
-    saved["refinement"] = dict(result["refinement"], rows=_jsonable(result["refinement"]["rows"]))
+    for key in ("refinement", "refinement_tracked"):
+        saved[key] = dict(result[key], rows=_jsonable(result[key]["rows"]))
     (outdir / "blast.json").write_text(json.dumps(saved, indent=1, default=str, allow_nan=False))
     paths = _figures(result, outdir)
     print(text)
