@@ -380,6 +380,7 @@ def plain_jax_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
     h, nodes, x_min, dt, m, V0 = (L[k] for k in ("h", "nodes", "x_min", "dt", "m", "V0"))
     strides = [L["axis_nodes"] ** (dim - 1 - a) for a in range(dim)]
     corners = [tuple(int(b) for b in c) for c in _corners(dim)]
+    K = len(corners)
 
     def stencil(y, gradients=True, box=False):
         s = (y - x_min) / h
@@ -432,12 +433,15 @@ def plain_jax_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
             vn = jnp.where(active, mom / safe, 0)
             acc = jnp.where(active, force / safe, 0)
             vnew = vn + dt * acc
-            vg, ag = vnew[idx], acc[idx]
-            v = v + dt * jnp.sum(w[:, :, None] * ag, axis=1)
-            x = x + dt * jnp.sum(w[:, :, None] * vg, axis=1)
-            grad_v = jnp.sum(vg[:, :, :, None] * dw[:, :, None, :], axis=1)
+            vg, ag, tg = vnew[idx], acc[idx], vnew[t_idx]
+            # sums over the stencil in unrolled adds: as a reduce, XLA's CPU backend fuses each with
+            # the gather and the nodal arithmetic before it and redoes those per read (3.9x slower
+            # in 2D at 102,400 particles, measured)
+            v = v + dt * sum(w[:, c, None] * ag[:, c] for c in range(K))
+            x = x + dt * sum(w[:, c, None] * vg[:, c] for c in range(K))
+            grad_v = sum(vg[:, c, :, None] * dw[:, c, None, :] for c in range(K))
             F = F + dt * jnp.matmul(grad_v, F)
-            x_tr = x_tr + dt * jnp.sum(t_w[:, :, None] * vnew[t_idx], axis=1)
+            x_tr = x_tr + dt * sum(t_w[:, c, None] * tg[:, c] for c in range(K))
             return (x, v, F, x_tr), None
 
         F0 = jnp.broadcast_to(jnp.eye(dim, dtype=X.dtype), (X.shape[0], dim, dim))
