@@ -19,7 +19,7 @@ Each must exit with status 0, and where a page states what its example prints, p
 Left out, each with its reason in ``EXCLUDED``: the install lines and the test command itself, which
 are what CI runs (``.ci/run``), and ``mkdocs serve``. Marked ``examples_long`` and run only with
 ``JAXMPM_LONG_EXAMPLES=1``: the examples of ``LONG`` (full studies, the benchmark, a fit with a large
-ensemble; each over about 10 s, minutes for most; 35 minutes in all in a CI run on 2 cores). CI runs
+ensemble; each over about 10 s, minutes for most; 32 minutes in all in a CI run on 2 cores). CI runs
 them after the suite, as a step of its own (``.ci/run``)::
 
     JAXMPM_LONG_EXAMPLES=1 python -m pytest -q -n 0 -m examples_long tests/test_examples.py
