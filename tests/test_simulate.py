@@ -235,3 +235,44 @@ def test_musl_conserves_momentum(interpolator):
 def test_bad_ordering():
     with pytest.raises(ValueError, match="ordering must be one of"):
         jm.simulate(SCENE, jm.SPQ(), dt=1e-5, steps=1, ordering="usf")
+
+
+def test_errors_compile_once_for_a_new_particle_count_and_equal_op_by_op():
+    """``jm.errors`` is two compiled programs: the scene's exact solution, and the errors for the shape
+    of the fields. On a particle count it has not seen it compiles those two (op by op it would compile
+    each of its ~27 operations); on another state of that count, of this or of another interpolator
+    and transfer, nothing. Its values are those of the same operations run op by op."""
+    sc = jm.GasExpansion(cells=11, pad=8)
+    a = jm.simulate(sc, jm.MPQ(), dt=1e-5, steps=4, artificial_cells=1)
+    b = jm.simulate(sc, jm.MPQ(), dt=1e-5, steps=7, artificial_cells=1)
+    c = jm.simulate(sc, jm.CPDI(), transfer=jm.APIC(), dt=1e-5, steps=7)  # no tracked corners, an affine C
+    where = jnp.arange(a.body.n) % 3 != 0
+    compiles = []
+
+    def listen(event, duration, **kwargs):
+        if event == "/jax/core/compile/backend_compile_duration":
+            compiles.append(event)
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        ea = jm.errors(sc, a.state, a.body, where=where)
+        assert len(compiles) == 2
+        compiles.clear()
+        eb = jm.errors(sc, b.state, b.body, where=where)
+        ec = jm.errors(sc, c.state, c.body, where=where)
+        assert compiles == []
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
+    with jax.disable_jit():
+        op_by_op = jm.errors(sc, b.state, b.body, where=where)
+    assert set(eb) == set(op_by_op) == {"separation_max", *jm.metrics.EXACT_ERRORS}
+    for k, v in op_by_op.items():
+        assert float(eb[k]) == pytest.approx(float(v), rel=1e-12, abs=1e-300), k
+    assert float(eb["F_max_rel"]) > 0.0 and float(ea["F_max_rel"]) != float(eb["F_max_rel"])
+    assert float(ec["F_max_rel"]) > 0.0 and float(ec["F_max_rel"]) != float(eb["F_max_rel"])
+    # a body with no interior cell: its interior errors are None, compiled or not
+    small = jm.GasExpansion(cells=2, pad=8)
+    s = jm.simulate(small, jm.SPQ(), dt=1e-5, steps=2)
+    e = jm.errors(small, s.state, s.body)
+    assert e["F_max_rel_interior"] is None and e["F_rms_rel_interior"] is None
+    assert float(e["F_max_rel_boundary"]) >= 0.0
