@@ -1,11 +1,36 @@
 """Shared test helpers: the one list of every interpolator and transfer that parametrised checks
 run over, so a new interpolator or transfer inherits every check; and the check of a usage error."""
 
+import contextlib
+
+import jax
+
 import jaxmpm as jm
 from jaxmpm.cli import main
 
+BACKEND_COMPILE = "/jax/core/compile/backend_compile_duration"
+TRACE = "/jax/core/compile/jaxpr_trace_duration"
+
 INTERPOLATORS = {name: make() for name, make in jm.INTERPOLATORS.items()}
 TRANSFERS = {name: make() for name, make in jm.TRANSFERS.items()}
+
+
+@contextlib.contextmanager
+def monitored(*events: str):
+    """Collect the JAX monitoring events named (default: each backend compilation) while the block
+    runs: JAX reports every trace and every compilation to its listeners."""
+    events = events or (BACKEND_COMPILE,)
+    seen = []
+
+    def listen(event, duration, **kwargs):
+        if event in events:
+            seen.append(event)
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    try:
+        yield seen
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listen)
 
 
 def usage(capsys, argv, match):

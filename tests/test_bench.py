@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import monitored
 
 import jaxmpm as jm
 from benchmarks import _baselines, _baselines_2d, bench
@@ -153,19 +154,10 @@ def test_layout_nd_and_cells_of():
 def test_no_recompilation_across_parameter_values():
     scene = jm.GasExpansion(cells=16, h=1.0 / 16, pad=8)
     jm.simulate(scene, jm.CPDI(), dt=1e-6, steps=5)
-    compiles = []
-
-    def listen(event, duration, **kwargs):
-        if event == "/jax/core/compile/backend_compile_duration":
-            compiles.append(event)
-
-    jax.monitoring.register_event_duration_secs_listener(listen)
-    try:
+    with monitored() as compiles:
         for beta, h, dt, P0 in ((100.0, 0.05, 2e-6, 3e5), (50.0, 0.07, 5e-7, 2.5e5)):
             other = jm.GasExpansion(cells=16, h=h, pad=8, beta=beta, P0=P0)
             jm.simulate(other, jm.CPDI(), dt=dt, steps=5)
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listen)
     assert compiles == []
 
 

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import BACKEND_COMPILE, TRACE, monitored
 
 import jaxmpm as jm
 from jaxmpm import _simulate
@@ -42,12 +43,6 @@ def test_scan_equals_python_loop(interpolator, transfer):
 def test_no_recompilation_for_new_parameter_values():
     """New values of the continuous parameters reuse the compiled run: nothing is traced or compiled
     again (JAX reports every trace and every backend compilation to its monitoring listeners)."""
-    events = []
-
-    def listen(event, duration, **kwargs):
-        if event in ("/jax/core/compile/jaxpr_trace_duration", "/jax/core/compile/backend_compile_duration"):
-            events.append(event)
-
     # So that the first call compiles, whatever ran before in this process: drop the compiled runs of
     # simulate only. jax.clear_caches() would drop every program of the process (slow to free after
     # hundreds of tests, and each later test on this worker would compile its shared ones again).
@@ -56,15 +51,12 @@ def test_no_recompilation_for_new_parameter_values():
         run.clear_cache()
     else:  # another equinox: drop everything, as before
         jax.clear_caches()
-    jax.monitoring.register_event_duration_secs_listener(listen)
-    try:
+    with monitored(TRACE, BACKEND_COMPILE) as events:
         a = jm.simulate(jm.GasExpansion(beta=100.0, h=0.1), jm.MPQ(), dt=1e-5, steps=5)
-        assert "/jax/core/compile/backend_compile_duration" in events  # the first call compiles
+        assert BACKEND_COMPILE in events  # the first call compiles
         events.clear()
         b = jm.simulate(jm.GasExpansion(beta=250.0, h=0.2, P0=3e5, gamma=1.3), jm.MPQ(), dt=2e-5, steps=5)
         assert events == []
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listen)
     assert not np.allclose(a.state.F, b.state.F)
 
 
@@ -237,7 +229,7 @@ def test_bad_ordering():
         jm.simulate(SCENE, jm.SPQ(), dt=1e-5, steps=1, ordering="usf")
 
 
-def test_errors_compile_once_for_a_new_particle_count_and_equal_op_by_op():
+def test_errors_compile_only_for_a_new_particle_count_and_equal_op_by_op():
     """``jm.errors`` is two compiled programs: the scene's exact solution, and the errors for the shape
     of the fields. On a particle count it has not seen it compiles those two (op by op it would compile
     each of its ~27 operations); on another state of that count, of this or of another interpolator
@@ -247,22 +239,13 @@ def test_errors_compile_once_for_a_new_particle_count_and_equal_op_by_op():
     b = jm.simulate(sc, jm.MPQ(), dt=1e-5, steps=7, artificial_cells=1)
     c = jm.simulate(sc, jm.CPDI(), transfer=jm.APIC(), dt=1e-5, steps=7)  # no tracked corners, an affine C
     where = jnp.arange(a.body.n) % 3 != 0
-    compiles = []
-
-    def listen(event, duration, **kwargs):
-        if event == "/jax/core/compile/backend_compile_duration":
-            compiles.append(event)
-
-    jax.monitoring.register_event_duration_secs_listener(listen)
-    try:
+    with monitored() as compiles:
         ea = jm.errors(sc, a.state, a.body, where=where)
         assert len(compiles) == 2
         compiles.clear()
         eb = jm.errors(sc, b.state, b.body, where=where)
         ec = jm.errors(sc, c.state, c.body, where=where)
         assert compiles == []
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listen)
     with jax.disable_jit():
         op_by_op = jm.errors(sc, b.state, b.body, where=where)
     assert set(eb) == set(op_by_op) == {"separation_max", *jm.metrics.EXACT_ERRORS}
