@@ -21,7 +21,9 @@ last good state: it is reported as broken down, with when (a fraction of two tra
 
 Then the best CPDI configuration at 10:1, APIC with shear viscosity 0.5, refined (16, 32 and 64 cells
 across the radius) for the observed order of its errors, and CPDI2 (the tracked-corner method) with
-the same remedy, refined the same way.
+the same remedy, refined the same way. Last, the planar analogue of the disk, the 1D slab of the same
+gas as thick as the radius (``make_slab``), with CPDI under FLIP and APIC at 16 to 128 cells against
+the 1D reference: the error the method makes in 1D at the disk's resolution.
 
 ``jaxmpm study blast --out DIR`` writes ``table.md``, ``blast.json`` and the figures
 ``radial_velocity.png`` and ``domains.png``.
@@ -72,10 +74,18 @@ PAD_RADII = {("disk", 1.5): 2.5, ("disk", 10.0): 2.5, ("disk", 100.0): 6.0, ("sp
 """The grid beyond the charge, in radii, of each scene: the reference's free surface reaches 1.26, 3.0
 and 4.9 radii for the disk at 1.5, 10 and 100 by two transits, and 2.3 for the sphere at 10. The grid
 ends at ``1 + pad`` radii: a particle that runs that far ahead stops the run (``LEFT_GRID``)."""
+SLAB_PAD = {1.5: 2.5, 10.0: 4.5, 100.0: 7.0}
+"""The grid beyond the slab, in thicknesses, at each ratio: the reference's free surface reaches 1.3, 3.8
+and 5.8 thicknesses by two transits (the planar charge expands further than the round ones)."""
+SLAB_CONFIGS = {("cpdi", "plain"): f"shear {SHEAR:g}", ("cpdi", "APIC"): f"APIC + shear {SHEAR:g}"}
+"""The configurations of the 1D slab (``slab``), FLIP and APIC, each with the disk's remedy it is the 1D
+form of: the shear viscosity is zero in 1D (the deviator of a 1 x 1 strain rate vanishes), and CPDI2
+is CPDI there while the domains stay contiguous."""
 FULL = dict(
     cases=(("disk", 1.5, 32), ("disk", 10.0, 32), ("disk", 100.0, 32), ("sphere", 10.0, 16)),
     configs=None,
     refinement=(16, 32, 64),
+    slab=dict(ratios=(1.5, 10.0, 100.0), cells=(16, 32, 64, 128)),
 )
 SMALL = dict(
     cases=(("disk", 10.0, 8),),
@@ -88,6 +98,7 @@ SMALL = dict(
         TRACKED,
     ),
     refinement=(4, 8),
+    slab=dict(ratios=(10.0,), cells=(4, 8)),
 )
 MEASURES = ("v_r_L1", "rho_L1", "ring_radius_error", "spread_max", "rotation_max", "folded")
 """The numbers of a row, all measured at the run's final state (its last good one after a breakdown)."""
@@ -115,12 +126,13 @@ def settings(small: bool = False) -> dict:
 
     Args:
         small: the reduced version (the disk at 10:1 only, 8 cells across the radius, six
-            configurations, refinements at 4 and 8 cells).
+            configurations, refinements at 4 and 8 cells, the slab at 10:1 at 4 and 8 cells).
 
     Returns:
-        ``dict(cases, configs, refinement)``: the scenes as ``(kind, ratio, cells)`` (kind ``"disk"`` or
-        ``"sphere"``, cells across the radius), the configurations (``configurations``) and the cells of
-        the refinements of ``BEST`` and ``TRACKED`` (on the disk at 10:1).
+        ``dict(cases, configs, refinement, slab)``: the scenes as ``(kind, ratio, cells)`` (kind
+        ``"disk"`` or ``"sphere"``, cells across the radius), the configurations (``configurations``),
+        the cells of the refinements of ``BEST`` and ``TRACKED`` (on the disk at 10:1) and the 1D
+        slab's ``ratios`` and ``cells`` (``slab``).
     """
     out = dict(SMALL if small else FULL)
     out["configs"] = configurations(small)
@@ -393,6 +405,126 @@ def refinement(cells_list, rows: list[dict], refs: References, config: tuple[str
     return dict(rows=out, orders=orders)
 
 
+def make_slab(ratio: float, cells: int):
+    """The planar analogue of the disk: ``jaxmpm.GasSlab`` of the disk's gas, as thick as its radius,
+    with its grid spacing and particles per cell (a wall at 0, the slab's plane of symmetry).
+
+    Args:
+        ratio: ``P0 / p_atm``.
+        cells: cells across the thickness.
+
+    Returns:
+        ``(slab, disk)``: the slab, ``SLAB_PAD[ratio]`` thicknesses of grid beyond it, and the disk it
+        is the analogue of (``make_scene("disk", ratio, cells)``).
+    """
+    disk = make_scene("disk", ratio, cells)
+    slab = jm.GasSlab(
+        P0=disk.P0,
+        gamma=disk.gamma,
+        p_atm=disk.p_atm,
+        rho0=disk.rho0,
+        h=disk.h,
+        cells=cells,
+        ppc=disk.ppc,
+        pad=int(round(SLAB_PAD[float(ratio)] * cells)),
+    )
+    return slab, disk
+
+
+def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
+    """The 1D slab (``make_slab``) run as the disk is (to two transits of its thickness, ``CFL``,
+    ``max_steps``), measured against the 1D reference (``jaxmpm.reference.gas_radial`` with ``dim=1``)
+    as the disk is: ``v_L1`` and ``rho_L1`` (relative L1 errors over the particles),
+    ``ring_radius_error`` (the particles within ``RING h`` of the surface, ``max |x / x_ref - 1|``)
+    and ``outer`` (the outermost particle's ``x / x_ref - 1``, signed: > 0 ahead of the reference).
+
+    Args:
+        ratio: ``P0 / p_atm``.
+        cells: cells across the thickness.
+        interpolator: a key of ``jaxmpm.INTERPOLATORS``.
+        remedy: a key of ``REMEDIES``.
+
+    Returns:
+        The row: ``ratio``, ``cells``, ``interpolator``, ``remedy``, ``steps``, ``t``, ``fraction``,
+        ``status``, ``finished``, ``failure`` (as ``run_row``'s), the measures (of the last good state
+        after a breakdown) and ``wall_s``.
+    """
+    slab, disk = make_slab(ratio, cells)
+    t_end = TRANSITS * float(disk.transit_time)
+    t0 = time.perf_counter()
+    sol = jm.simulate(
+        slab,
+        jm.INTERPOLATORS[interpolator](),
+        t_end=t_end,
+        cfl=CFL,
+        max_steps=max_steps(cells),
+        throw=False,
+        **run_options(remedy),
+    )
+    jax.block_until_ready(sol.state)
+    wall = time.perf_counter() - t0
+    st = sol.state
+    t = float(st.t)
+    fail = sol.failure()
+    if fail is not None:
+        fail = dict(fail, fraction=t / t_end)
+    ref = jm.reference.gas_radial(
+        slab.P0, slab.gamma, slab.p_atm, slab.rho0, disk.radius, 1, np.array([t]), cells=1600, viscosity=True
+    )
+    X = np.asarray(sol.body.X)[:, 0]
+    at = ref.at(X)
+    v_ref, rho_ref, x_ref = (np.asarray(at[k][0]) for k in ("v", "rho", "r"))
+    x, v = np.asarray(st.x)[:, 0], np.asarray(st.v)[:, 0]
+    rho = float(slab.rho0) / np.asarray(st.F)[:, 0, 0]
+    ring = X > float(disk.radius) - RING * float(slab.h)
+    v_norm = np.sum(np.abs(v_ref))
+    return dict(
+        ratio=float(ratio),
+        cells=cells,
+        interpolator=interpolator,
+        remedy=remedy,
+        steps=int(st.step),
+        t=t,
+        fraction=t / t_end,
+        status=int(st.status),
+        finished=fail is None,
+        failure=fail,
+        v_L1=_finite(np.sum(np.abs(v - v_ref)) / v_norm) if v_norm > 0 else None,
+        rho_L1=_finite(np.sum(np.abs(rho - rho_ref)) / np.sum(np.abs(rho_ref))),
+        ring_radius_error=_finite(np.max(np.abs(x[ring] / x_ref[ring] - 1.0))),
+        outer=_finite(x[-1] / x_ref[-1] - 1.0),
+        wall_s=wall,
+    )
+
+
+def slab(ratios, cells_list) -> dict:
+    """The 1D slab of each ratio with each configuration of ``SLAB_CONFIGS``, refined: what the same
+    method does in 1D at the disk's resolution.
+
+    Args:
+        ratios: pressure ratios.
+        cells_list: cells across the thickness, coarse to fine.
+
+    Returns:
+        ``dict(rows, orders)``: the rows (``slab_row``'s), and per ``"{ratio}/{interpolator} {remedy}"``
+        the observed orders of ``v_L1`` and ``ring_radius_error`` (``{measure}_order_fit`` and
+        ``{measure}_order_pairs``, over the runs that ran through).
+    """
+    rows, orders = [], {}
+    for ratio in ratios:
+        for config in SLAB_CONFIGS:
+            mine = [slab_row(ratio, cells, *config) for cells in cells_list]
+            rows += mine
+            h = [1.0 / r["cells"] for r in mine]
+            o = {}
+            for q in ("v_L1", "ring_radius_error"):
+                o[f"{q}_order_fit"], o[f"{q}_order_pairs"] = observed_orders(
+                    h, [r[q] if r["finished"] else None for r in mine]
+                )
+            orders[f"{float(ratio):g}/{config[0]} {config[1]}"] = o
+    return dict(rows=rows, orders=orders)
+
+
 def best(rows: list[dict], interpolator: str, kind: str = "disk", ratio: float = 10.0) -> dict | None:
     """The best configuration of an interpolator on a scene: one that ran through with the smallest
     ``v_r`` L1 error, else the one that broke down latest.
@@ -532,12 +664,65 @@ def _markdown(result: dict) -> str:
             f"rho L1 {_num(o['rho_L1_order_fit'], '.2f')}, "
             f"ring radius {_num(o['ring_radius_error_order_fit'], '.2f')}.",
         ]
+    lines += _slab_markdown(result)
     figs = result["figures"]
     lines += ["", "Figures (disk at 10:1, the best configuration of each interpolator):", ""]
     for name, f in figs.items():
         lines.append(f"- {name}: {f['remedy']} ({status_cell(f)})")
     lines += ["", f"Machine: {result['machine']}; total {result['wall_s']:.0f} s.", ""]
     return "\n".join(lines)
+
+
+def _slab_markdown(result: dict) -> list[str]:
+    sl, rows = result["slab"], result["rows"]
+    lines = [
+        "",
+        "## The 1D slab at the same resolution",
+        "",
+        "The planar analogue of the disk (`jaxmpm.GasSlab`: the same gas, as thick as the disk's radius, "
+        "a wall at 0 as its plane of symmetry, the same h, particles per cell, CFL and end time), against "
+        "the 1D reference (`gas_radial` with dim = 1, 1600 cells, with its viscosity), measured as the "
+        "disk is: v and rho L1 over the particles, the ring (within "
+        f"{RING:g} h of the surface) and the outermost particle's signed radius error (> 0: ahead of the "
+        "reference). It is the error the same interpolator and transfer make in 1D, with no spurious "
+        "shear or rotation to cause it. The shear viscosity vanishes in 1D, so FLIP and APIC here are "
+        f"the 1D forms of the disk's shear {SHEAR:g} and APIC + shear {SHEAR:g}; the last columns give "
+        "the disk's ring with those, where the study ran them. Orders are of each successive pair, on "
+        "the finer row.",
+    ]
+    for ratio in dict.fromkeys(r["ratio"] for r in sl["rows"]):
+        lines += [
+            "",
+            f"### Slab at {ratio:g}:1",
+            "",
+            "| interpolator | remedy | cells | status | v L1 | order | rho L1 | ring r error | order "
+            "| outer particle | disk's remedy | disk: ring r error | steps taken | wall s |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        mine = [r for r in sl["rows"] if r["ratio"] == ratio]
+        for config in dict.fromkeys((r["interpolator"], r["remedy"]) for r in mine):
+            o = sl["orders"][f"{ratio:g}/{config[0]} {config[1]}"]
+            runs = [r for r in mine if (r["interpolator"], r["remedy"]) == config]
+            for k, r in enumerate(runs):
+                pair = {
+                    q: (None if k == 0 else o[f"{q}_order_pairs"][k - 1])
+                    for q in ("v_L1", "ring_radius_error")
+                }
+                disk = [
+                    d
+                    for d in rows
+                    if (d["kind"], d["ratio"], d["cells"], d["interpolator"], d["remedy"])
+                    == ("disk", ratio, r["cells"], config[0], SLAB_CONFIGS[config])
+                ]
+                disk_ring = _measure_cell(disk[0], "ring_radius_error", ".4f") if disk else ""
+                lines.append(
+                    f"| {r['interpolator']} | {r['remedy']} | {r['cells']} | {status_cell(r)} "
+                    f"| {_measure_cell(r, 'v_L1', '.4f')} | {_num(pair['v_L1'], '.2f')} "
+                    f"| {_measure_cell(r, 'rho_L1', '.4f')} | {_measure_cell(r, 'ring_radius_error', '.4f')} "
+                    f"| {_num(pair['ring_radius_error'], '.2f')} | {_measure_cell(r, 'outer', '+.4f')} "
+                    f"| {SLAB_CONFIGS[config]} | {disk_ring} | {r['steps']} | {r['wall_s']:.1f} |"
+                )
+    return lines
 
 
 def _save(fig, path: pathlib.Path) -> pathlib.Path:
@@ -626,9 +811,9 @@ def main(out: str, small: bool = False) -> dict:
     Returns:
         ``settings``, ``scenes`` (``scene_info`` of each case), ``rows`` (one per case and
         configuration, ``run_row``'s), ``refinement`` and ``refinement_tracked`` (rows and orders of
-        ``BEST`` and ``TRACKED``), ``figure_rows`` (the best CPDI,
-        MPQ and CPDI2 rows at 10:1, ``best``), ``figures`` (their configurations), ``machine`` and
-        ``wall_s``.
+        ``BEST`` and ``TRACKED``), ``slab`` (the 1D slab's rows and orders, ``slab``), ``figure_rows``
+        (the best CPDI, MPQ and CPDI2 rows at 10:1, ``best``), ``figures`` (their configurations),
+        ``machine`` and ``wall_s``.
 
     Raises:
         RuntimeError: float64 is off.
@@ -656,6 +841,7 @@ def main(out: str, small: bool = False) -> dict:
         rows=rows,
         refinement=refinement(cfg["refinement"], rows, refs, BEST),
         refinement_tracked=refinement(cfg["refinement"], rows, refs, TRACKED),
+        slab=slab(cfg["slab"]["ratios"], cfg["slab"]["cells"]),
         figure_rows=figure_rows,
         figures={
             r["interpolator"]: dict(remedy=r["remedy"], finished=r["finished"], failure=r["failure"])
