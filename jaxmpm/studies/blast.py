@@ -263,6 +263,28 @@ def measure(scene, sol, reference) -> dict:
     )
 
 
+def _run(scene, cells: int, interpolator: str, remedy: str, t_end: float):
+    """A run of the study to ``t_end`` (``CFL``, ``max_steps(cells)``, the remedy's options): the
+    ``Solution``, its failure (``Solution.failure`` with the fraction of ``t_end`` reached, or ``None``)
+    and the wall time, compile included."""
+    t0 = time.perf_counter()
+    sol = jm.simulate(
+        scene,
+        jm.INTERPOLATORS[interpolator](),
+        t_end=t_end,
+        cfl=CFL,
+        max_steps=max_steps(cells),
+        throw=False,
+        **run_options(remedy),
+    )
+    jax.block_until_ready(sol.state)
+    wall = time.perf_counter() - t0
+    fail = sol.failure()
+    if fail is not None:
+        fail = dict(fail, fraction=float(sol.state.t) / t_end)
+    return sol, fail, wall
+
+
 def run_row(kind: str, ratio: float, cells: int, interpolator: str, remedy: str, refs: References) -> dict:
     """One run to two transits and its measures.
 
@@ -283,23 +305,9 @@ def run_row(kind: str, ratio: float, cells: int, interpolator: str, remedy: str,
     """
     scene = make_scene(kind, ratio, cells)
     t_end = TRANSITS * float(scene.transit_time)
-    t0 = time.perf_counter()
-    sol = jm.simulate(
-        scene,
-        jm.INTERPOLATORS[interpolator](),
-        t_end=t_end,
-        cfl=CFL,
-        max_steps=max_steps(cells),
-        throw=False,
-        **run_options(remedy),
-    )
-    jax.block_until_ready(sol.state)
-    wall = time.perf_counter() - t0
+    sol, fail, wall = _run(scene, cells, interpolator, remedy, t_end)
     st = sol.state
     t = float(st.t)
-    fail = sol.failure()
-    if fail is not None:
-        fail = dict(fail, fraction=t / t_end)
     row = dict(
         kind=kind,
         dim=scene.dim,
@@ -451,23 +459,9 @@ def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
     """
     slab, disk = make_slab(ratio, cells)
     t_end = TRANSITS * float(disk.transit_time)
-    t0 = time.perf_counter()
-    sol = jm.simulate(
-        slab,
-        jm.INTERPOLATORS[interpolator](),
-        t_end=t_end,
-        cfl=CFL,
-        max_steps=max_steps(cells),
-        throw=False,
-        **run_options(remedy),
-    )
-    jax.block_until_ready(sol.state)
-    wall = time.perf_counter() - t0
+    sol, fail, wall = _run(slab, cells, interpolator, remedy, t_end)
     st = sol.state
     t = float(st.t)
-    fail = sol.failure()
-    if fail is not None:
-        fail = dict(fail, fraction=t / t_end)
     ref = jm.reference.gas_radial(
         slab.P0, slab.gamma, slab.p_atm, slab.rho0, disk.radius, 1, np.array([t]), cells=1600, viscosity=True
     )
