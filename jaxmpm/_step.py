@@ -25,12 +25,12 @@ from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
 from ._checks import is_concrete
-from ._util import contract, det
+from ._util import contract, det, materialise
 from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
 from .explosives import ProgrammedBurn
 from .grid import Grid
 from .interpolators import AbstractInterpolator
-from .interpolators._transfer import any_axis, points_stencil
+from .interpolators._transfer import any_axis, gradient_forces, points_stencil, shared_corner_forces
 from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
 from .particles import Body, State
 from .regions import Layout, Region
@@ -563,8 +563,10 @@ def step(
     m = body.m
     stencil = interp.stencil(grid, body.r0, x, F, _particle_corners(state, body))
     shared = stencil.gidx is stencil.idx
-    idx, gidx = _materialised(grid.dim, (stencil.idx, None if shared else stencil.gidx))
-    stencil = stencil._replace(idx=idx, gidx=idx if shared else gidx)
+    idx, gidx, S_c, g_c = _materialised(
+        grid.dim, (stencil.idx, None if shared else stencil.gidx, stencil.S_c, stencil.g_c)
+    )
+    stencil = stencil._replace(idx=idx, gidx=idx if shared else gidx, S_c=S_c, g_c=g_c)
 
     # 1. Particle to grid: mass and momentum (artificial particles join here, and only here).
     mass, momentum = _transfer_to_grid(grid, transfer, stencil, x, v, state.C, m)
@@ -591,8 +593,10 @@ def step(
 
     # 2. Forces: internal, body force, tractions at the material boundary points.
     V = body.V0 * det(F)
-    f_int = contract("nab,nkb->nka", state.sigma, stencil.dw) * V[:, None, None]
-    f = -grid.scatter(stencil.gidx, f_int)
+    if interp.tracks_corners and grid.dim > 1:
+        f = -shared_corner_forces(grid, stencil, state.sigma, V, state.corners, body.corner_ids)
+    else:
+        f = -grid.scatter(stencil.gidx, gradient_forces(stencil, state.sigma, V))
     if scene.body_force is not None:
         b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
         f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
@@ -746,13 +750,7 @@ def _materialised(dim: int, fields: tuple) -> tuple:
         The same values.
     """
 
-    def copy(a):
-        if a is None:
-            return a
-        i = jnp.arange(a.shape[0], dtype=jnp.int32)
-        return jnp.zeros_like(a).at[i].set(a, indices_are_sorted=True, unique_indices=True)
-
-    return fields if dim == 1 else tuple(copy(a) for a in fields)
+    return fields if dim == 1 else tuple(None if a is None else materialise(a) for a in fields)
 
 
 def _volume_averaged(kind, grid, body, stencil, x, F):

@@ -114,6 +114,21 @@ def contract(spec: str, a: Array, b: Array) -> Array:
     return jnp.transpose(prod, perm) if perm != sorted(perm) else prod
 
 
+def materialise(a: Array) -> Array:
+    """``a`` written once into its own buffer, so that XLA's CPU backend does not fuse its computation
+    into each of its readers and redo it for every read (a scatter is never fused into its consumers;
+    this one is an exact copy, every entry written once). See ``jaxmpm._step._materialised``.
+
+    Args:
+        a: an array with a leading axis.
+
+    Returns:
+        The same values.
+    """
+    i = jnp.arange(a.shape[0], dtype=jnp.int32)
+    return jnp.zeros_like(a).at[i].set(a, indices_are_sorted=True, unique_indices=True)
+
+
 def adjugate(A):
     """The adjugate ``adj A`` (``A^-1 = adj A / det A``) of each matrix, in closed form for ``dim <= 3``
     (the cofactor transpose; 1 in 1D).

@@ -12,6 +12,7 @@ from jaxtyping import Array, Float
 from ._util import contract
 from .grid import Grid
 from .interpolators import Stencil
+from .interpolators._transfer import gradient_outer
 
 
 class AbstractTransfer(eqx.Module):
@@ -143,7 +144,7 @@ class APIC(AbstractTransfer):
     def update(self, grid, stencil, v, a_nodes, v_new, dt):
         del v, a_nodes, dt
         v_g = grid.gather(stencil.gidx, v_new)
-        C = contract("nka,nkb->nab", v_g, stencil.dw)
+        C = gradient_outer(stencil, v_g)
         return _interp(grid, stencil, v_new), C
 
 

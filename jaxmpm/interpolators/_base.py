@@ -25,6 +25,13 @@ class Stencil(NamedTuple):
         dw: values of ``dphi``.
         ok: whether the particle's query fits the interpolator's stencil (GIMP's domain may outgrow a
             fixed-width stencil); ``None`` when it always fits.
+        S_c: the domain form's factors of ``dw`` (CPDI, MPQ, CPDI2 in 2D and 3D; ``None`` otherwise):
+            each node's hat value at each domain corner, ``(n, corners, nodes)``, with
+            ``dw[:, c * nodes + i] = S_c[:, c, i] g_c[:, c]``. The step contracts through them
+            (``gradient_forces``, ``gradient_outer``): ``2^dim`` products a particle where ``dw``
+            takes ``4^dim``.
+        g_c: the corner vectors ``D^-T s_c`` of the domain form (``domain_gradient``), ``(n,
+            corners, dim)``.
     """
 
     idx: Int[Array, "n k"]
@@ -32,6 +39,8 @@ class Stencil(NamedTuple):
     gidx: Int[Array, "n kg"] | None
     dw: Float[Array, "n kg dim"] | None
     ok: Bool[Array, " n"] | None
+    S_c: Float[Array, "n corners nodes"] | None = None
+    g_c: Float[Array, "n corners dim"] | None = None
 
 
 class AbstractInterpolator(eqx.Module):

@@ -14,7 +14,7 @@ import operator
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
-from .._util import adjugate, contract, corner_signs, det
+from .._util import adjugate, contract, corner_signs, det, materialise
 from ..grid import Grid
 from ..particles import Body
 from ._base import Stencil
@@ -128,7 +128,7 @@ def domain_gradient(S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
     function over the domain, ``2^-dim sum_c S_i(x_c) J^-T s_c`` (Sadeghirad, Brannon & Burghardt
     2011, CPDI1; in 2D their eq. 31). In 1D it is ``(S_i(c2) - S_i(c1)) / (c2 - c1)``. The entries
     are returned flat, ``(n, corners * k, dim)`` (corner-major); summing over corners is left to the
-    scatter.
+    scatter. In 2D and 3D each entry is ``S_i(x_c) g_c`` with ``g_c`` of ``corner_vectors``.
 
     Args:
         S: each node's hat value at each of the particle's corners.
@@ -138,13 +138,130 @@ def domain_gradient(S: Float[Array, "n corners k"], D: Float[Array, "n dim dim"]
         ``dphi_ip`` per (corner, node) entry.
     """
     d = D.shape[-1]
-    signs = jnp.asarray(corner_signs(d), dtype=D.dtype)
     n, c, k = S.shape
     if d == 1:  # adj(D) = 1: signed hat values over the length, as flat rows (the fastest form)
-        sign = jnp.repeat(signs[:, 0], k)  # per (corner, node) entry
+        sign = jnp.repeat(jnp.asarray(corner_signs(1), dtype=D.dtype)[:, 0], k)  # per (corner, node) entry
         return ((sign[None, :] * S.reshape(n, c * k)) / D[:, :, 0])[..., None]
-    g = contract("nji,cj->nci", adjugate(D), signs)  # adj(D)^T s_c, (n, corners, dim)
-    return ((S[..., None] * g[:, :, None, :]) / det(D)[:, None, None, None]).reshape(n, c * k, d)
+    return (S[..., None] * corner_vectors(D)[:, :, None, :]).reshape(n, c * k, d)
+
+
+def corner_vectors(D: Float[Array, "n dim dim"]) -> Float[Array, "n corners dim"]:
+    """``g_c = D^-T s_c = adj(D)^T s_c / det D`` for each of a particle's ``2^dim`` corners (signs
+    ``s_c`` of ``corner_signs``), the factor of the domain form ``dphi_ip = sum_c S_i(x_c) g_c``.
+
+    Args:
+        D: ``corner_matrix`` of each particle's corners.
+
+    Returns:
+        ``g_c`` of each particle's corners.
+    """
+    signs = jnp.asarray(corner_signs(D.shape[-1]), dtype=D.dtype)
+    return contract("nji,cj->nci", adjugate(D), signs) / det(D)[:, None, None]
+
+
+def domain_stencil(
+    idx: Int[Array, "n k"],
+    w: Float[Array, "n k"],
+    gidx: Int[Array, "n ck"],
+    S: Float[Array, "n corners nodes"],
+    D: Float[Array, "n dim dim"],
+) -> Stencil:
+    """The stencil of an interpolator whose ``dphi`` is the domain form (``domain_gradient``) on the
+    nodes ``gidx`` of the corners' hat stencils ``S``; in 2D and 3D it carries the factors ``S_c`` and
+    ``g_c`` as well.
+
+    Args:
+        idx: node indices of ``phi``.
+        w: values of ``phi``.
+        gidx: node indices of ``dphi``, corner-major.
+        S: each node's hat value at each of the particle's corners.
+        D: ``corner_matrix`` of the corners.
+
+    Returns:
+        The ``Stencil``.
+    """
+    if D.shape[-1] == 1:
+        return Stencil(idx, w, gidx, domain_gradient(S, D), None)
+    n, c, k = S.shape
+    g = corner_vectors(D)
+    dw = (S[..., None] * g[:, :, None, :]).reshape(n, c * k, D.shape[-1])
+    return Stencil(idx, w, gidx, dw, None, S, g)
+
+
+def gradient_forces(
+    stencil: Stencil, sigma: Float[Array, "n dim dim"], V: Float[Array, " n"]
+) -> Float[Array, "n kg dim"]:
+    """``V_p sigma_p dphi_ip`` for every entry of the stencil's ``dphi`` (the internal force, before
+    its sign): through the factors ``S_c``, ``g_c`` where the stencil has them, ``S_i(x_c) (V_p
+    sigma_p g_c)``.
+
+    Args:
+        stencil: the particles' stencil (with gradients).
+        sigma: the particles' stress.
+        V: the particles' volume.
+
+    Returns:
+        ``V_p sigma_p dphi_ip`` per entry of ``gidx``.
+    """
+    if stencil.S_c is None:
+        return contract("nab,nkb->nka", sigma, stencil.dw) * V[:, None, None]
+    n, c, k = stencil.S_c.shape
+    q = materialise(contract("nab,ncb->nca", sigma, stencil.g_c) * V[:, None, None])
+    return (stencil.S_c[..., None] * q[:, :, None, :]).reshape(n, c * k, q.shape[-1])
+
+
+def shared_corner_forces(
+    grid: Grid,
+    stencil: Stencil,
+    sigma: Float[Array, "n dim dim"],
+    V: Float[Array, " n"],
+    corners: Float[Array, "nc dim"],
+    corner_ids: Int[Array, "n corners"],
+) -> Float[Array, "n_nodes dim"]:
+    """The nodal internal force (before its sign) ``sum_p V_p sigma_p dphi_ip`` of particles whose
+    domain corners are tracked and shared (MPQ, CPDI2 in 2D and 3D), summed corner by corner.
+
+    With ``dphi_ip = sum_c S_i(x_c) g_pc`` (``domain_stencil``) the force is ``sum_corners S_i(x_c)
+    Q_c`` with ``Q_c = sum_{p at c} V_p sigma_p g_pc``: each corner gathers its particles' share
+    first (``2^dim`` entries a particle), then its own hat stencil takes it to the nodes (``2^dim``
+    entries a corner), where the per-particle form scatters ``4^dim`` entries a particle. Equal to
+    that form up to the order of the sums.
+
+    Args:
+        grid: the background grid.
+        stencil: the particles' stencil (with the factors ``g_c``).
+        sigma: the particles' stress.
+        V: the particles' volume.
+        corners: the body's tracked corners, one row per corner.
+        corner_ids: each particle's corners (``Body.corner_ids``), in the order of ``g_c``.
+
+    Returns:
+        The nodal force.
+    """
+    q = contract("nab,ncb->nca", sigma, stencil.g_c) * V[:, None, None]
+    q_corner = jnp.zeros(corners.shape, q.dtype).at[corner_ids].add(q)
+    c_idx, c_s, _ = points_stencil(grid, corners, gradients=False)
+    return grid.scatter(c_idx, c_s[..., None] * q_corner[:, None, :])
+
+
+def gradient_outer(stencil: Stencil, values: Float[Array, "n kg dim"]) -> Float[Array, "n dim dim"]:
+    """``sum_i values_ip (dphi_ip)^T`` over the stencil's ``dphi`` entries (a velocity gradient):
+    through the factors where the stencil has them, ``sum_c (sum_i S_i(x_c) values_ip) g_c^T``.
+
+    Args:
+        stencil: the particles' stencil (with gradients).
+        values: one vector per entry of ``gidx`` (nodal values gathered there).
+
+    Returns:
+        The sum of outer products, one matrix per particle.
+    """
+    if stencil.S_c is None:
+        return contract("nka,nkb->nab", values, stencil.dw)
+    n, c, k = stencil.S_c.shape
+    at_corners = materialise(
+        contract("nck,nckd->ncd", stencil.S_c, values.reshape(n, c, k, values.shape[-1]))
+    )
+    return contract("nca,ncb->nab", at_corners, stencil.g_c)
 
 
 def velocity_gradient(
@@ -160,8 +277,7 @@ def velocity_gradient(
     Returns:
         ``L`` of each particle.
     """
-    v = grid.gather(stencil.gidx, v_nodes)  # (n, kg, dim)
-    return contract("nka,nkb->nab", v, stencil.dw)
+    return gradient_outer(stencil, grid.gather(stencil.gidx, v_nodes))
 
 
 def multiplicative_F_update(

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 
 from ..particles import parallelogram_corners
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import domain_gradient, multiplicative_F_update, points_stencil
+from ._transfer import domain_stencil, multiplicative_F_update, points_stencil
 
 
 class CPDI(AbstractInterpolator):
@@ -41,7 +41,7 @@ class CPDI(AbstractInterpolator):
         w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
             return Stencil(idx, w, None, None, None)
-        return Stencil(idx, w, idx, domain_gradient(s, D), None)
+        return domain_stencil(idx, w, idx, s, D)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body

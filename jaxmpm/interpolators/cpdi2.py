@@ -7,7 +7,7 @@ import jax.numpy as jnp
 
 from ..particles import parallelogram_corners
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import corner_matrix, domain_gradient, points_stencil, tracked_corner_update
+from ._transfer import corner_matrix, domain_stencil, points_stencil, tracked_corner_update
 
 
 class CPDI2(AbstractInterpolator):
@@ -56,7 +56,7 @@ class CPDI2(AbstractInterpolator):
         w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
             return Stencil(idx, w, None, None, None)
-        return Stencil(idx, w, idx, domain_gradient(s, corner_matrix(c)), None)
+        return domain_stencil(idx, w, idx, s, corner_matrix(c))
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F

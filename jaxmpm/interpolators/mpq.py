@@ -6,7 +6,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 
 from ._base import AbstractInterpolator, Stencil
-from ._transfer import corner_matrix, domain_gradient, points_stencil, tracked_corner_update
+from ._transfer import corner_matrix, domain_stencil, points_stencil, tracked_corner_update
 
 
 class MPQ(AbstractInterpolator):
@@ -36,7 +36,7 @@ class MPQ(AbstractInterpolator):
             raise ValueError("MPQ needs the particles' tracked corners for dphi")
         n, d = x.shape
         cidx, s, _ = points_stencil(grid, corners, gradients=False)  # (n, 2^d corners, 2^d nodes)
-        return Stencil(idx, w, cidx.reshape(n, -1), domain_gradient(s, corner_matrix(corners)), None)
+        return domain_stencil(idx, w, cidx.reshape(n, -1), s, corner_matrix(corners))
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F
