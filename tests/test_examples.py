@@ -19,10 +19,11 @@ Each must exit with status 0, and where a page states what its example prints, p
 Left out, each with its reason in ``EXCLUDED``: the install lines and the test command itself, which
 are what CI runs (``.ci/run``), and ``mkdocs serve``. Marked ``examples_long`` and run only with
 ``JAXMPM_LONG_EXAMPLES=1``: the examples of ``LONG`` (full studies, the benchmark, a fit with a large
-ensemble; each over about 10 s, minutes for most; 32 minutes in all in a CI run on 2 cores). CI runs
-them after the suite, as a step of its own (``.ci/run``)::
+ensemble; each over about 10 s, minutes for most). They are a check of their own, for a release or a
+change to a study, not part of every CI run (``.ci/run`` says why)::
 
-    JAXMPM_LONG_EXAMPLES=1 python -m pytest -q -n 0 -m examples_long tests/test_examples.py
+    JAXMPM_LONG_EXAMPLES=1 bash .ci/run   # or, in an installed environment:
+    JAXMPM_LONG_EXAMPLES=1 python -m pytest -q -n 2 -m examples_long tests/test_examples.py
 
 Every other example runs in the ordinary suite (marked slow: not in ``-m "not slow"``).
 """
@@ -56,9 +57,9 @@ EXCLUDED = {
     "tests/test_multiprocess.py run the same with two local processes",
 }
 
-# The long examples: they run only when JAXMPM_LONG_EXAMPLES=1 (a CI step after the suite, marker
-# `examples_long`). A key is the start of a shell command line as written on its page, or "python:"
-# and a page (its Python blocks), or "shell:" and a page (its shell blocks' other lines). A long
+# The long examples: they run only when JAXMPM_LONG_EXAMPLES=1 (marker `examples_long`). A key is
+# the start of a shell command line as written on its page, or "python:" and a page (its Python
+# blocks), or "shell:" and a page (its shell blocks' other lines). A long
 # command line runs after its block's other lines (it may read what they wrote); the same long
 # command on two pages (its `--out` and comment aside) runs once.
 LONG = {  # over about 10 s each, single process on 2 cores
