@@ -89,9 +89,10 @@ def test_the_shear_viscosity_is_zero_in_1d_so_the_slab_runs_are_the_disks_remedi
     """The slab's FLIP and APIC rows stand for the disk's shear-viscosity remedies: in 1D the deviator of
     the strain rate vanishes, so adding the shear viscosity changes nothing but round-off (the compiled
     step differs: measured 3.5e-15 relative in rho L1, the rest equal)."""
+    refs = blast.References()
     for remedy, with_shear in blast.SLAB_CONFIGS.items():
-        a = blast.slab_row(10.0, 4, *remedy)
-        b = blast.slab_row(10.0, 4, remedy[0], with_shear)
+        a = blast.slab_row(10.0, 4, *remedy, refs=refs)
+        b = blast.slab_row(10.0, 4, remedy[0], with_shear, refs=refs)
         assert a["finished"] and b["finished"] and a["steps"] == b["steps"] > 50
         for k in ("v_L1", "rho_L1", "ring_radius_error", "outer"):
             assert a[k] == pytest.approx(b[k], rel=1e-12, abs=0.0), (remedy, k)

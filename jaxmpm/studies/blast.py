@@ -198,7 +198,7 @@ def _finite(x) -> float | None:
 
 
 class References:
-    """The radial references of the study's charges, solved once per charge and time."""
+    """The radial references of the study's charges and of their 1D slabs, solved once per charge and time."""
 
     def __init__(self):
         self._done: dict = {}
@@ -216,6 +216,24 @@ class References:
         key = (scene.dim, float(scene.P0), float(f"{t:.12g}"))
         if key not in self._done:
             self._done[key] = scene.reference(np.array([t]))
+        return self._done[key]
+
+    def slab(self, slab, disk, t: float):
+        """The 1D reference of ``make_slab``'s slab at time ``t`` (``jaxmpm.reference.gas_radial`` with
+        ``dim=1``, 1,600 cells, the viscosity on).
+
+        Args:
+            slab: the ``GasSlab``.
+            disk: the disk it is the analogue of (its radius is the slab's thickness).
+            t: the time (> 0).
+
+        Returns:
+            The ``RadialSolution`` at ``[t]``.
+        """
+        params = (slab.P0, slab.gamma, slab.p_atm, slab.rho0, disk.radius)
+        key = ("slab", *(float(p) for p in params), float(f"{t:.12g}"))
+        if key not in self._done:
+            self._done[key] = jm.reference.gas_radial(*params, 1, np.array([t]), cells=1600, viscosity=True)
         return self._done[key]
 
 
@@ -439,7 +457,9 @@ def make_slab(ratio: float, cells: int):
     return slab, disk
 
 
-def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
+def slab_row(
+    ratio: float, cells: int, interpolator: str, remedy: str, refs: References | None = None
+) -> dict:
     """The 1D slab (``make_slab``) run as the disk is (to two transits of its thickness, ``CFL``,
     ``max_steps``), measured against the 1D reference (``jaxmpm.reference.gas_radial`` with ``dim=1``)
     as the disk is: ``v_L1`` and ``rho_L1`` (relative L1 errors over the particles),
@@ -451,6 +471,8 @@ def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
         cells: cells across the thickness.
         interpolator: a key of ``jaxmpm.INTERPOLATORS``.
         remedy: a key of ``REMEDIES``.
+        refs: the ``References`` to take the reference from (solved once per slab and time), or
+            ``None`` for a reference of this row alone.
 
     Returns:
         The row: ``ratio``, ``cells``, ``interpolator``, ``remedy``, ``steps``, ``t``, ``fraction``,
@@ -462,9 +484,7 @@ def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
     sol, fail, wall = _run(slab, cells, interpolator, remedy, t_end)
     st = sol.state
     t = float(st.t)
-    ref = jm.reference.gas_radial(
-        slab.P0, slab.gamma, slab.p_atm, slab.rho0, disk.radius, 1, np.array([t]), cells=1600, viscosity=True
-    )
+    ref = (References() if refs is None else refs).slab(slab, disk, t)
     X = np.asarray(sol.body.X)[:, 0]
     at = ref.at(X)
     v_ref, rho_ref, x_ref = (np.asarray(at[k][0]) for k in ("v", "rho", "r"))
@@ -491,23 +511,25 @@ def slab_row(ratio: float, cells: int, interpolator: str, remedy: str) -> dict:
     )
 
 
-def slab(ratios, cells_list) -> dict:
+def slab(ratios, cells_list, refs: References | None = None) -> dict:
     """The 1D slab of each ratio with each configuration of ``SLAB_CONFIGS``, refined: what the same
     method does in 1D at the disk's resolution.
 
     Args:
         ratios: pressure ratios.
         cells_list: cells across the thickness, coarse to fine.
+        refs: the ``References`` the rows share (a new one if ``None``).
 
     Returns:
         ``dict(rows, orders)``: the rows (``slab_row``'s), and per ``"{ratio}/{interpolator} {remedy}"``
         the observed orders of ``v_L1`` and ``ring_radius_error`` (``{measure}_order_fit`` and
         ``{measure}_order_pairs``, over the runs that ran through).
     """
+    refs = References() if refs is None else refs
     rows, orders = [], {}
     for ratio in ratios:
         for config in SLAB_CONFIGS:
-            mine = [slab_row(ratio, cells, *config) for cells in cells_list]
+            mine = [slab_row(ratio, cells, *config, refs=refs) for cells in cells_list]
             rows += mine
             h = [1.0 / r["cells"] for r in mine]
             o = {}
@@ -835,7 +857,7 @@ def main(out: str, small: bool = False) -> dict:
         rows=rows,
         refinement=refinement(cfg["refinement"], rows, refs, BEST),
         refinement_tracked=refinement(cfg["refinement"], rows, refs, TRACKED),
-        slab=slab(cfg["slab"]["ratios"], cfg["slab"]["cells"]),
+        slab=slab(cfg["slab"]["ratios"], cfg["slab"]["cells"], refs),
         figure_rows=figure_rows,
         figures={
             r["interpolator"]: dict(remedy=r["remedy"], finished=r["finished"], failure=r["failure"])
