@@ -611,7 +611,7 @@ def step(
     if scene.body_force is not None:
         b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
         f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
-        pre_checks.append((st_bits.SCENE_DATA, ~jnp.isfinite(b).all(1)))
+        pre_checks.append((st_bits.SCENE_DATA, ~_finite_rows(b)))
     if state.x_traction is not None:
         tractions = scene.traction(t)  # per face (low, high of each axis), each None or a vector
         tr_face = jnp.stack([tv for tv in tractions if tv is not None])  # (loaded faces, dim)
