@@ -213,10 +213,7 @@ class References:
         Returns:
             The ``RadialSolution`` at ``[t]``.
         """
-        key = (scene.dim, float(scene.P0), float(f"{t:.12g}"))
-        if key not in self._done:
-            self._done[key] = scene.reference(np.array([t]))
-        return self._done[key]
+        return self._solved((scene.dim, float(scene.P0)), t, scene.reference)
 
     def slab(self, slab, disk, t: float):
         """The 1D reference of ``make_slab``'s slab at time ``t`` (``jaxmpm.reference.gas_radial`` with
@@ -231,9 +228,17 @@ class References:
             The ``RadialSolution`` at ``[t]``.
         """
         params = (slab.P0, slab.gamma, slab.p_atm, slab.rho0, disk.radius)
-        key = ("slab", *(float(p) for p in params), float(f"{t:.12g}"))
+
+        def solve(ts):
+            return jm.reference.gas_radial(*params, 1, ts, cells=1600, viscosity=True)
+
+        return self._solved(("slab", *(float(p) for p in params)), t, solve)
+
+    def _solved(self, what: tuple, t: float, solve):
+        """``solve(np.array([t]))``, solved once per ``what`` and ``t`` (to 12 digits)."""
+        key = (*what, float(f"{t:.12g}"))
         if key not in self._done:
-            self._done[key] = jm.reference.gas_radial(*params, 1, np.array([t]), cells=1600, viscosity=True)
+            self._done[key] = solve(np.array([t]))
         return self._done[key]
 
 
