@@ -722,9 +722,15 @@ def step(
     else:
         healthy = state.status == 0
     ok = healthy & (bits == 0)
-    # (lax.cond, not a select: a healthy step then costs no extra pass over the state; under vmap
-    # it becomes the select.)
-    kept = jax.lax.cond(ok, lambda: new, lambda: state)
+    # In 1D a lax.cond: a healthy step then makes no extra pass over the state. In 2D and 3D a select,
+    # which XLA's CPU backend fuses into the loops that compute the new state: measured against the
+    # cond with 100 steps of the benchmark's problem (float32), 3-4% faster for SPQ in 2D (102,400
+    # particles) and 3D (32,768), 7% for MPQ in 2D, level for CPDI; in 1D the select was 6% slower
+    # (1M particles). Under vmap the cond becomes the select too.
+    if grid.dim == 1:
+        kept = jax.lax.cond(ok, lambda: new, lambda: state)
+    else:
+        kept = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, state)
     first = healthy & (bits != 0)
     return eqx.tree_at(
         lambda z: (z.status, z.fail_step, z.fail_particle),
