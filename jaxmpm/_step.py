@@ -723,10 +723,9 @@ def step(
         healthy = state.status == 0
     ok = healthy & (bits == 0)
     # In 1D a lax.cond: a healthy step then makes no extra pass over the state. In 2D and 3D a select,
-    # which XLA's CPU backend fuses into the loops that compute the new state: measured against the
-    # cond with 100 steps of the benchmark's problem (float32), 3-4% faster for SPQ in 2D (102,400
-    # particles) and 3D (32,768), 7% for MPQ in 2D, level for CPDI; in 1D the select was 6% slower
-    # (1M particles). Under vmap the cond becomes the select too.
+    # which XLA's CPU backend fuses into the loops that compute the new state, where the cond copied
+    # the whole state out of its branch; in 1D the select was the slower (both measured in the
+    # performance docs, 2D and 3D). Under vmap the cond becomes the select too.
     if grid.dim == 1:
         kept = jax.lax.cond(ok, lambda: new, lambda: state)
     else:
