@@ -1,4 +1,4 @@
-"""Issue 5: the gas slab, its diffrax reference, calibration with optax, ensembles and sharding."""
+"""The gas slab, its diffrax reference, calibration with optax, ensembles and sharding."""
 
 import json
 import os
