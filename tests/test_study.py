@@ -26,3 +26,28 @@ def test_study_talk_small(tmp_path, capsys):
     assert float(by[("MPQ", "1", late)]["F_max_rel"]) < float(by[("SPQ", "0", late)]["F_max_rel"]) / 5
     assert all(r["status"] == "ok" for r in rows)
     assert "| MPQ | 1 |" in (tmp_path / "table.md").read_text()
+
+
+def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
+    """The sensitivity study's figure takes one colour per interpolator of the registry (every one of
+    ``METHODS``, with and without artificial cells), so a new interpolator cannot break the study."""
+    import numpy as np
+
+    from jaxmpm.studies import sensitivity
+
+    values = np.array([50.0, 100.0, 200.0])
+    results = [
+        dict(
+            method=name,
+            artificial_cells=ac,
+            param="beta",
+            values=values,
+            error=1e-3 * values,
+            derivative=1e-6 * (values - 100.0),
+        )
+        for name in METHODS
+        for ac in (0, 1)
+    ]
+    path = tmp_path / "sensitivity_beta.png"
+    sensitivity.figure(results, "beta", path, "s")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -109,7 +109,7 @@ def figure(results: list[dict], param: str, path, unit: str, ordering: str = "us
 
     fig = new_figure(figsize=(11, 4))
     axes = fig.subplots(1, 2)
-    colours = dict(zip(METHODS, ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")))
+    colours = {name: f"C{i}" for i, name in enumerate(METHODS)}  # matplotlib's colour cycle, one each
     for r in results:
         if r["param"] != param:
             continue
