@@ -723,9 +723,9 @@ def step(
         healthy = state.status == 0
     ok = healthy & (bits == 0)
     # In 2D and 3D a select, which XLA's CPU backend fuses into the loops that compute the new state
-    # (a lax.cond copied the whole state out of its branch every step). In 1D the two take about the
-    # same time and the step keeps the cond, which leaves 1D runs bit for bit as they were (measured:
-    # the performance docs, 2D and 3D). Under vmap the cond becomes the select too.
+    # (a lax.cond copies the whole state out of its branch every step). In 1D the two take about the
+    # same time (the performance docs), and the step uses the cond. Under vmap the cond becomes the
+    # select too.
     if grid.dim == 1:
         kept = jax.lax.cond(ok, lambda: new, lambda: state)
     else:
