@@ -464,12 +464,7 @@ def prepare(
 
     Args:
         scene, interpolator, dt, steps, t_end, cfl, max_steps, transfer, artificial_cells, saveat,
-            cfl_limit: as for ``simulate``.
-            ordering: as for ``simulate``.
-            checkpoint: as for ``simulate``.
-            viscosity: as for ``simulate``.
-            volume_average: as for ``simulate``.
-            devices: as for ``simulate``.
+            cfl_limit, ordering, checkpoint, viscosity, volume_average, devices: as for ``simulate``.
 
     Returns:
         ``(model, dt, steps, saveat)``: ``dt`` an array, or a ``ToEnd`` for a run to ``t_end`` (then
