@@ -4,21 +4,23 @@ Each form sums the same ``2 n`` weighted values (two nodes per particle, particl
 1D body) onto ``n_nodes`` nodes, for three quantities (mass, momentum, force), inside a
 ``lax.scan`` so that dispatch does not count:
 
+- ``node windows x3``: three scatters of ``n`` windows of two consecutive nodes (what ``Grid.scatter``
+  does in 1D, given the stencil's first nodes);
 - ``scalar x6``: six scalar scatters of ``n`` values (what the plain-JAX baseline does);
-- ``flat x3``: three scalar scatters of ``2 n`` values (what ``Grid.scatter`` does);
+- ``flat x3``: three scalar scatters of ``2 n`` values (what ``Grid.scatter`` does without them);
 - ``per column x3``: each of the three as two scatters, one per stencil column;
 - ``window (2n, 3)``: one scatter of three-value rows;
 - ``complex x2``: mass and momentum as the real and imaginary parts of one complex scatter;
 - ``sorted hint``, ``segment_sum``: the flat form told that its indices are sorted.
 
-Also the two gathers of a 1D G2P: per node (``field[i]``, ``field[i + 1]``) and as rows of a
-stacked ``(field[j], field[j + 1])`` array.
+Also the gathers of a 1D G2P: per node (``field[i]``, ``field[i + 1]``), as rows of a stacked
+``(field[j], field[j + 1])`` array, and as windows of two nodes (what ``Grid.gather`` does in 1D).
 
     python experiments/scatter_forms.py [--n 262144,1048576] [--x64]
 
 Prints milliseconds per step and nanoseconds per scattered value; compare rows within one run.
 In isolation one scatter per stencil column is the cheapest form, yet inside the whole step it was
-slower than the flat form (see the README's performance section): measure forms in the step too.
+slower than the flat form (see the performance docs): measure forms in the step too.
 """
 
 import argparse
@@ -78,7 +80,19 @@ def forms(n_nodes):
             for v in vals
         ]
 
+    def node_windows3(i, w1, vals):  # what jaxmpm's 1D grid scatter does (Grid.scatter with base)
+        w = jnp.stack([1 - w1, w1], 1)
+        dims = jax.lax.ScatterDimensionNumbers((1,), (), (0,))
+        mode = jax.lax.GatherScatterMode.FILL_OR_DROP
+        return [
+            jax.lax.scatter_add(jnp.zeros(n_nodes + 2), (i + 1)[:, None], w * v[:, None], dims, mode=mode)[
+                1:-1
+            ]
+            for v in vals
+        ]
+
     return {
+        "node windows x3": node_windows3,
         "scalar x6": scalar6,
         "flat x3": flat3,
         "per column x3": per_column3,
@@ -104,7 +118,13 @@ def gathers():
         stacked = jnp.stack([field[:-1], field[1:]], 1)[i]
         return (1 - w1) * stacked[:, 0] + w1 * stacked[:, 1]
 
-    return {"gather per node": per_node, "gather stacked rows": rows}
+    def node_windows(i, w1, field):  # what jaxmpm's 1D grid gather does (Grid.gather with base)
+        dims = jax.lax.GatherDimensionNumbers((1,), (), (0,))
+        mode = jax.lax.GatherScatterMode.FILL_OR_DROP
+        pair = jax.lax.gather(jnp.pad(field, 1), (i + 1)[:, None], dims, (2,), mode=mode, fill_value=0.0)
+        return (1 - w1) * pair[:, 0] + w1 * pair[:, 1]
+
+    return {"gather per node": per_node, "gather stacked rows": rows, "gather node windows": node_windows}
 
 
 def time_form(fn, args, reps=30):

@@ -488,8 +488,8 @@ def _sound_speed(model: Model, setup: Setup, state: State) -> Float[Array, " n"]
 
 def _transfer_to_grid(grid: Grid, transfer: AbstractTransfer, stencil, x, v, C, m):
     """Nodal mass and momentum that particles with ``stencil`` put on the grid (the step's stage 1)."""
-    mass = grid.scatter(stencil.idx, stencil.w * m[:, None])
-    return mass, grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, C, m))
+    mass = grid.scatter(stencil.idx, stencil.w * m[:, None], stencil.base)
+    return mass, grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v, C, m), stencil.base)
 
 
 def particle_to_grid(
@@ -607,10 +607,10 @@ def step(
     if interp.tracks_corners and grid.dim > 1:
         f = -shared_corner_forces(grid, stencil, state.sigma, V, state.corners, body.corner_ids)
     else:
-        f = -grid.scatter(stencil.gidx, gradient_forces(stencil, state.sigma, V))
+        f = -grid.scatter(stencil.gidx, gradient_forces(stencil, state.sigma, V), stencil.gbase)
     if scene.body_force is not None:
         b = jax.vmap(scene.body_force, in_axes=(0, None))(body.X, t)
-        f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :])
+        f = f + grid.scatter(stencil.idx, (stencil.w * m[:, None])[..., None] * b[:, None, :], stencil.base)
         pre_checks.append((st_bits.SCENE_DATA, ~_finite_rows(b)))
     if state.x_traction is not None:
         tractions = scene.traction(t)  # per face (low, high of each axis), each None or a vector
@@ -640,15 +640,16 @@ def step(
     # 4. Particles. (MUSL: then the nodal velocity is re-projected from the new particle momenta.)
     v_p, C = transfer.update(grid, stencil, v, a, v_new, dt)
     if model.ordering == "musl":
-        momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v_p, C, m))
+        momentum = grid.scatter(stencil.idx, transfer.momentum(grid, stencil, x, v_p, C, m), stencil.base)
         if setup.layer is not None:
             v_a, C_a = layer.extrapolate(v_p), layer.mean(C) if transfer.affine else None
-            momentum = momentum + grid.scatter(st_a.idx, transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a))
+            momentum_a = transfer.momentum(grid, st_a, x_a, v_a, C_a, m_a)
+            momentum = momentum + grid.scatter(st_a.idx, momentum_a, st_a.base)
         v_new = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass_all, 1.0)[:, None], 0.0)
         if setup.walls is not None:
             v_new = jnp.where(setup.walls, 0.0, v_new)
         (v_new,) = _materialised(grid.dim, (v_new,))
-    x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new))
+    x_p = x + dt * contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, v_new, stencil.base))
 
     # 5. Kinematics, 6. constitutive update (at the volume-averaged F where the run asks for it).
     F_new, corners = interp.update_F(grid, body, stencil, F, state.corners, v_new, dt)
@@ -784,11 +785,11 @@ def _volume_averaged(kind, grid, body, stencil, x, F):
         ref = jax.ops.segment_sum(V0, ids, num_segments=grid.n_nodes)
         J_bar = vol[ids] / ref[ids]
     else:
-        vol = grid.scatter(stencil.idx, stencil.w * (V0 * J)[:, None])
-        ref = grid.scatter(stencil.idx, stencil.w * V0[:, None])
+        vol = grid.scatter(stencil.idx, stencil.w * (V0 * J)[:, None], stencil.base)
+        ref = grid.scatter(stencil.idx, stencil.w * V0[:, None], stencil.base)
         filled = ref > 0
         J_i = jnp.where(filled, vol / jnp.where(filled, ref, 1.0), 0.0)
-        J_bar = contract("nk,nk->n", stencil.w, grid.gather(stencil.idx, J_i))
+        J_bar = contract("nk,nk->n", stencil.w, grid.gather(stencil.idx, J_i, stencil.base))
     ratio = J_bar / J
     return F * jnp.sign(ratio)[:, None, None] * jnp.abs(ratio)[:, None, None] ** (1.0 / x.shape[1])
 

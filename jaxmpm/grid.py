@@ -4,6 +4,7 @@ import math
 
 import equinox as eqx
 import jax.numpy as jnp
+from jax import lax
 from jaxtyping import Array, Float, Int
 
 from ._util import lattice
@@ -119,33 +120,82 @@ class Grid(eqx.Module):
             valid = valid & (i >= 0) & (i < n)
         return jnp.where(valid, flat, self.n_nodes)
 
-    def scatter(self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."]) -> Float[Array, "n_nodes ..."]:
+    def scatter(
+        self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."], base: Int[Array, "n g"] | None = None
+    ) -> Float[Array, "n_nodes ..."]:
         """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.
 
         A particle whose stencil leaves the grid is flagged by the step's status check, so a drop
         never passes silently.
 
+        With ``base`` (1D: each particle's ``k`` nodes are ``g`` runs of ``k / g`` consecutive nodes,
+        run ``r`` starting at ``base[:, r]``), each run's values are added as one window onto the
+        field padded by ``k / g - 1`` nodes at each end, and the padding is dropped: the same sums in
+        the same order, bit for bit, as ``k`` single-node updates, which XLA's CPU backend runs
+        several times slower.
+
         Args:
             idx: node indices.
             values: one value (scalar or array) per index.
+            base: the first node of each run of consecutive nodes (1D), or ``None``.
 
         Returns:
             The nodal field.
         """
         tail = values.shape[2:]
+        if base is not None:
+            n, g = base.shape
+            width = idx.shape[1] // g
+            pad = width - 1  # a window reaching past an end puts those values on the padding
+            out = jnp.zeros((self.n_nodes + 2 * pad,) + tail, dtype=values.dtype)
+            dims = lax.ScatterDimensionNumbers(
+                update_window_dims=tuple(range(1, 2 + len(tail))),
+                inserted_window_dims=(),
+                scatter_dims_to_operand_dims=(0,),
+            )
+            runs = values.reshape((n * g, width) + tail)
+            starts = (base.reshape(-1) + pad)[:, None]
+            out = lax.scatter_add(out, starts, runs, dims, mode=lax.GatherScatterMode.FILL_OR_DROP)
+            return out[pad : pad + self.n_nodes]
         flat_idx = idx.reshape(-1)
         flat_val = values.reshape((-1,) + tail)
         out = jnp.zeros((self.n_nodes,) + tail, dtype=values.dtype)
         return out.at[flat_idx].add(flat_val, mode="drop")
 
-    def gather(self, idx: Int[Array, "n k"], field: Float[Array, "n_nodes ..."]) -> Float[Array, "n k ..."]:
+    def gather(
+        self,
+        idx: Int[Array, "n k"],
+        field: Float[Array, "n_nodes ..."],
+        base: Int[Array, "n g"] | None = None,
+    ) -> Float[Array, "n k ..."]:
         """Node values of ``field`` at ``idx`` (out-of-grid indices read zero).
+
+        With ``base`` (1D, as for ``scatter``), each run of consecutive nodes is read as one window of
+        the field padded by zeros at each end.
 
         Args:
             idx: node indices.
             field: a nodal field.
+            base: the first node of each run of consecutive nodes (1D), or ``None``.
 
         Returns:
             ``field[idx]``.
         """
+        if base is not None:
+            n, g = base.shape
+            width = idx.shape[1] // g
+            tail = field.shape[1:]
+            padded = jnp.pad(field, [(width - 1, width - 1)] + [(0, 0)] * len(tail))
+            dims = lax.GatherDimensionNumbers(
+                offset_dims=tuple(range(1, 1 + field.ndim)), collapsed_slice_dims=(), start_index_map=(0,)
+            )
+            runs = lax.gather(
+                padded,
+                (base.reshape(-1) + (width - 1))[:, None],
+                dims,
+                slice_sizes=(width,) + tail,
+                mode=lax.GatherScatterMode.FILL_OR_DROP,
+                fill_value=0.0,
+            )
+            return runs.reshape((n, g * width) + tail)
         return field.at[idx].get(mode="fill", fill_value=0.0)

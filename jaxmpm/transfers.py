@@ -83,7 +83,7 @@ def _point_momentum(stencil: Stencil, v, m):
 
 
 def _interp(grid: Grid, stencil: Stencil, field):
-    return contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, field))
+    return contract("nk,nkd->nd", stencil.w, grid.gather(stencil.idx, field, stencil.base))
 
 
 class FLIP(AbstractTransfer):
@@ -143,7 +143,7 @@ class APIC(AbstractTransfer):
 
     def update(self, grid, stencil, v, a_nodes, v_new, dt):
         del v, a_nodes, dt
-        v_g = grid.gather(stencil.gidx, v_new)
+        v_g = grid.gather(stencil.gidx, v_new, stencil.gbase)
         C = gradient_outer(stencil, v_g)
         return _interp(grid, stencil, v_new), C
 

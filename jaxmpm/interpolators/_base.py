@@ -32,6 +32,11 @@ class Stencil(NamedTuple):
             takes ``4^dim``.
         g_c: the corner vectors ``D^-T s_c`` of the domain form (``domain_gradient``), ``(n,
             corners, dim)``.
+        base: in 1D, where each particle's ``idx`` are ``g`` runs of consecutive nodes (one run for
+            SPQ and MPQ's ``phi``, one a corner for CPDI and CPDI2), the first node of each,
+            ``(n, g)``; the grid's scatters and gathers then move each run as one window
+            (``Grid.scatter``). ``None`` otherwise.
+        gbase: the same for ``gidx``.
     """
 
     idx: Int[Array, "n k"]
@@ -41,6 +46,8 @@ class Stencil(NamedTuple):
     ok: Bool[Array, " n"] | None
     S_c: Float[Array, "n corners nodes"] | None = None
     g_c: Float[Array, "n corners dim"] | None = None
+    base: Int[Array, "n g"] | None = None
+    gbase: Int[Array, "n g"] | None = None
 
 
 class AbstractInterpolator(eqx.Module):

@@ -277,7 +277,7 @@ def velocity_gradient(
     Returns:
         ``L`` of each particle.
     """
-    return gradient_outer(stencil, grid.gather(stencil.gidx, v_nodes))
+    return gradient_outer(stencil, grid.gather(stencil.gidx, v_nodes, stencil.gbase))
 
 
 def multiplicative_F_update(
@@ -330,7 +330,7 @@ def tracked_corner_update(
         ``(F_new, corners_new)``.
     """
     cidx, s, _ = points_stencil(grid, corners, gradients=False)
-    v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new))
+    v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new, cidx[:, :1] if grid.dim == 1 else None))
     corners = corners + dt * v_c
     D = corner_matrix(body.particle_corners(corners))  # (n, dim, dim)
     d = D.shape[-1]

@@ -37,11 +37,12 @@ class CPDI(AbstractInterpolator):
             c = parallelogram_corners(r0, x, F)
             D = (2.0**d) * (F * r0[:, None, :])
         idx, s, _ = points_stencil(grid, c, gradients=False)  # (n, 2^d corners, 2^d nodes)
+        base = idx[:, :, 0] if d == 1 else None  # in 1D each corner's two nodes are consecutive
         idx = idx.reshape(n, -1)
         w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
-            return Stencil(idx, w, None, None, None)
-        return domain_stencil(idx, w, idx, s, D)
+            return Stencil(idx, w, None, None, None, base=base)
+        return domain_stencil(idx, w, idx, s, D)._replace(base=base, gbase=base)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body

@@ -52,11 +52,12 @@ class CPDI2(AbstractInterpolator):
         c = parallelogram_corners(r0, x, F) if corners is None else corners
         n, d = x.shape
         idx, s, _ = points_stencil(grid, c, gradients=False)  # (n, 2^d corners, 2^d nodes)
+        base = idx[:, :, 0] if d == 1 else None  # in 1D each corner's two nodes are consecutive
         idx = idx.reshape(n, -1)
         w = (0.5**d) * s.reshape(n, -1)
         if not gradients:
-            return Stencil(idx, w, None, None, None)
-        return domain_stencil(idx, w, idx, s, corner_matrix(c))
+            return Stencil(idx, w, None, None, None, base=base)
+        return domain_stencil(idx, w, idx, s, corner_matrix(c))._replace(base=base, gbase=base)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F

@@ -30,13 +30,15 @@ class MPQ(AbstractInterpolator):
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F
         idx, w, _ = points_stencil(grid, x, gradients=False)
+        base = idx[:, :1] if grid.dim == 1 else None
         if not gradients:
-            return Stencil(idx, w, None, None, None)
+            return Stencil(idx, w, None, None, None, base=base)
         if corners is None:
             raise ValueError("MPQ needs the particles' tracked corners for dphi")
         n, d = x.shape
         cidx, s, _ = points_stencil(grid, corners, gradients=False)  # (n, 2^d corners, 2^d nodes)
-        return domain_stencil(idx, w, cidx.reshape(n, -1), s, corner_matrix(corners))
+        st = domain_stencil(idx, w, cidx.reshape(n, -1), s, corner_matrix(corners))
+        return st._replace(base=base, gbase=cidx[:, :, 0] if d == 1 else None)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del stencil, F

@@ -16,9 +16,10 @@ class SPQ(AbstractInterpolator):
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del r0, F, corners
         idx, w, dw = points_stencil(grid, x, gradients)
+        base = idx[:, :1] if grid.dim == 1 else None
         if not gradients:
-            return Stencil(idx, w, None, None, None)
-        return Stencil(idx, w, idx, dw, None)
+            return Stencil(idx, w, None, None, None, base=base)
+        return Stencil(idx, w, idx, dw, None, base=base, gbase=base)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
         del body
