@@ -123,16 +123,18 @@ class Grid(eqx.Module):
     def scatter(
         self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."], base: Int[Array, "n g"] | None = None
     ) -> Float[Array, "n_nodes ..."]:
-        """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.
+        """Sum ``values`` onto nodes ``idx``; indices past the grid's end are dropped.
 
         A particle whose stencil leaves the grid is flagged by the step's status check, so a drop
-        never passes silently.
+        never passes silently. In 1D without ``base`` a negative index counts from the end, as in
+        ``jnp`` indexing (2D and 3D stencils carry ``n_nodes`` for a node off the grid).
 
         With ``base`` (1D: each particle's ``k`` nodes are ``g`` runs of ``k / g`` consecutive nodes,
         run ``r`` starting at ``base[:, r]``), each run's values are added as one window onto the
-        field padded by ``k / g - 1`` nodes at each end, and the padding is dropped: the same sums in
-        the same order, bit for bit, as ``k`` single-node updates, which XLA's CPU backend runs
-        several times slower.
+        field padded by ``k / g - 1`` nodes at each end, and the padding is dropped (so is every value
+        off the grid, at either end): the same sums in the same order, bit for bit, as ``k``
+        single-node updates, and faster inside the step on XLA's CPU backend (the performance docs,
+        "1D windows").
 
         Args:
             idx: node indices.
@@ -168,10 +170,11 @@ class Grid(eqx.Module):
         field: Float[Array, "n_nodes ..."],
         base: Int[Array, "n g"] | None = None,
     ) -> Float[Array, "n k ..."]:
-        """Node values of ``field`` at ``idx`` (out-of-grid indices read zero).
+        """Node values of ``field`` at ``idx`` (indices past the grid's end read zero; in 1D without
+        ``base`` a negative index counts from the end, as for ``scatter``).
 
         With ``base`` (1D, as for ``scatter``), each run of consecutive nodes is read as one window of
-        the field padded by zeros at each end.
+        the field padded by zeros at each end (every node off the grid reads zero).
 
         Args:
             idx: node indices.
