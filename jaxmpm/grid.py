@@ -123,18 +123,16 @@ class Grid(eqx.Module):
     def scatter(
         self, idx: Int[Array, "n k"], values: Float[Array, "n k ..."], base: Int[Array, "n g"] | None = None
     ) -> Float[Array, "n_nodes ..."]:
-        """Sum ``values`` onto nodes ``idx``; indices past the grid's end are dropped.
+        """Sum ``values`` onto nodes ``idx``; indices outside the grid are dropped.
 
         A particle whose stencil leaves the grid is flagged by the step's status check, so a drop
-        never passes silently. In 1D without ``base`` a negative index counts from the end, as in
-        ``jnp`` indexing (2D and 3D stencils carry ``n_nodes`` for a node off the grid).
+        never passes silently.
 
         With ``base`` (1D: each particle's ``k`` nodes are ``g`` runs of ``k / g`` consecutive nodes,
         run ``r`` starting at ``base[:, r]``), each run's values are added as one window onto the
-        field padded by ``k / g - 1`` nodes at each end, and the padding is dropped (so is every value
-        off the grid, at either end): the same sums in the same order, bit for bit, as ``k``
-        single-node updates, and faster inside the step on XLA's CPU backend (the performance docs,
-        "1D windows").
+        field padded by ``k / g - 1`` nodes at each end, and the padding is dropped: the same sums in
+        the same order, bit for bit, as ``k`` single-node updates, and faster inside the step on XLA's
+        CPU backend (the performance docs, "1D windows").
 
         Args:
             idx: node indices.
@@ -160,6 +158,8 @@ class Grid(eqx.Module):
             out = lax.scatter_add(out, starts, runs, dims, mode=lax.GatherScatterMode.FILL_OR_DROP)
             return out[pad : pad + self.n_nodes]
         flat_idx = idx.reshape(-1)
+        if self.dim == 1:  # a node past the low end is dropped too, not counted from the end
+            flat_idx = jnp.where(flat_idx < 0, self.n_nodes, flat_idx)
         flat_val = values.reshape((-1,) + tail)
         out = jnp.zeros((self.n_nodes,) + tail, dtype=values.dtype)
         return out.at[flat_idx].add(flat_val, mode="drop")
@@ -170,11 +170,10 @@ class Grid(eqx.Module):
         field: Float[Array, "n_nodes ..."],
         base: Int[Array, "n g"] | None = None,
     ) -> Float[Array, "n k ..."]:
-        """Node values of ``field`` at ``idx`` (indices past the grid's end read zero; in 1D without
-        ``base`` a negative index counts from the end, as for ``scatter``).
+        """Node values of ``field`` at ``idx`` (out-of-grid indices read zero).
 
         With ``base`` (1D, as for ``scatter``), each run of consecutive nodes is read as one window of
-        the field padded by zeros at each end (every node off the grid reads zero).
+        the field padded by zeros at each end.
 
         Args:
             idx: node indices.
@@ -201,4 +200,6 @@ class Grid(eqx.Module):
                 fill_value=0.0,
             )
             return runs.reshape((n, g * width) + tail)
+        if self.dim == 1:  # a node past the low end reads zero too, not counted from the end
+            idx = jnp.where(idx < 0, self.n_nodes, idx)
         return field.at[idx].get(mode="fill", fill_value=0.0)
