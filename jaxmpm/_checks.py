@@ -65,6 +65,21 @@ def check_real(name: str, value) -> None:
         raise ValueError(f"{name} must be a real number, got {_brief(value)}")
 
 
+def check_scalar(name: str, value, batch: str = "") -> None:
+    """Check that a concrete value is one number (a 0-d array at most); a tracer passes.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+        batch: appended to the message (how to run several values instead).
+
+    Raises:
+        ValueError: ``value`` has a shape.
+    """
+    if is_concrete(value) and np.ndim(value) != 0:
+        raise ValueError(f"{name} must be one number, got an array of shape {np.shape(value)}{batch}")
+
+
 def check_finite(name: str, value) -> None:
     """Check a concrete value (every entry of an array); a tracer passes.
 
@@ -73,8 +88,9 @@ def check_finite(name: str, value) -> None:
         value: its value.
 
     Raises:
-        ValueError: ``value`` is not finite.
+        ValueError: ``value`` is not a real number (``check_real``) or not finite.
     """
+    check_real(name, value)
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(np.isfinite(arr)):

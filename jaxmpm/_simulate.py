@@ -1,5 +1,6 @@
 """The one time-loop driver: ``lax.scan`` over pure steps, saving only what was asked."""
 
+import dataclasses
 import math
 import time
 import typing
@@ -13,7 +14,7 @@ from jaxtyping import Array, Float, Int
 
 from . import _memory
 from . import status as st_bits
-from ._checks import check_int, check_positive, is_concrete
+from ._checks import check_int, check_positive, check_scalar, is_concrete
 from ._step import (
     Model,
     Setup,
@@ -69,7 +70,8 @@ class Solution(eqx.Module):
     Attributes:
         state: the final state; after a failure, the last good state (the failing step is not taken).
         body: the reference configuration (``X``, masses, which particles are in boundary cells).
-        ts: times of the saved history, or ``None``.
+        ts: times of the saved history, or ``None``. After a failure the saves that follow it repeat
+            the last good state, with its time.
         history: saved fields, each with a leading time axis, or ``None``.
     """
 
@@ -89,7 +91,19 @@ class Solution(eqx.Module):
         Returns:
             ``None`` for a healthy run, else a dict with the ``status`` bitmask, the ``step`` and
             ``particle`` of the first failure and the failed ``quantities`` in words.
+
+        Raises:
+            ValueError: the solution holds a batch of runs (``jax.vmap``): read one member
+                (``jax.tree.map(lambda a: a[i], solution).failure()``) or use ``jaxmpm.ensemble``,
+                whose ``Ensemble.failures()`` lists the members that broke down.
         """
+        if np.ndim(self.state.status) != 0:
+            raise ValueError(
+                f"failure() reads one run, and this solution holds a batch of shape "
+                f"{np.shape(self.state.status)} (jax.vmap): read member i with "
+                f"jax.tree.map(lambda a: a[i], solution).failure(), or run jaxmpm.ensemble, whose "
+                f"Ensemble.failures() lists the members that broke down"
+            )
         status = int(self.state.status)
         if status == 0:
             return None
@@ -143,12 +157,17 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         raise ValueError(
             f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
         )
+    several = ": to run several values, jax.vmap over simulate or use jaxmpm.ensemble"
+    for f in dataclasses.fields(scene):
+        if f.metadata.get("converter") is as_float:
+            check_scalar(f"{type(scene).__name__}.{f.name}", getattr(scene, f.name), several)
     if isinstance(dt, ToEnd):
         check_positive("t_end", dt.t_end)
         check_positive("cfl", dt.cfl)
         check_int("max_steps", steps, 1)
     else:
         check_positive("dt", dt)
+        check_scalar("dt", dt, several)
         check_int("steps", steps, 0)
     if steps > MAX_STEP_COUNT:
         name = "max_steps" if isinstance(dt, ToEnd) else "steps"
@@ -156,11 +175,12 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
             f"{name} must be <= {MAX_STEP_COUNT} (the step counter is a 32-bit integer), got {steps}"
         )
     check_int("artificial_cells", artificial_cells, 0)
-    check_structure(scene, artificial_cells)
+    check_structure(scene, int(artificial_cells))
     if not isinstance(checkpoint, bool):
         check_int("checkpoint", checkpoint, 1)
     if cfl_limit is not None:
         check_positive("cfl_limit", cfl_limit)
+        check_scalar("cfl_limit", cfl_limit)
 
 
 def as_devices(devices) -> tuple[jax.Device, ...] | None:
@@ -217,7 +237,7 @@ def save_fields(state: State, fields: Sequence[str]) -> dict[str, Array]:
 RESIDUAL_TO_STATE = 8
 
 
-def checkpoint_block(checkpoint: bool | int | None, steps: int) -> int | None:
+def checkpoint_block(checkpoint: bool | int | np.integer | None, steps: int) -> int | None:
     """Steps per checkpointed block of reverse mode.
 
     Args:
@@ -232,7 +252,7 @@ def checkpoint_block(checkpoint: bool | int | None, steps: int) -> int | None:
         return None
     if checkpoint is True:
         return max(1, math.ceil(math.sqrt(steps / RESIDUAL_TO_STATE)))
-    return checkpoint
+    return int(checkpoint)  # a NumPy integer too: the block length is static
 
 
 def advance(
@@ -369,7 +389,11 @@ def run_scan(
     if isinstance(dt, ToEnd):
         ts = jnp.concatenate([state0.t[None], saved["t"]])
     else:
+        frame_steps = jnp.arange(steps // saveat.every + 1, dtype=state.step.dtype) * saveat.every
         ts = jnp.arange(steps // saveat.every + 1, dtype=dt.dtype) * (saveat.every * dt)
+        # After a breakdown the state stays at its last good step, and every later save repeats
+        # it: those frames carry its time, not one the run never reached.
+        ts = jnp.where(frame_steps <= state.step, ts, state.t.astype(ts.dtype))
     return Solution(state, s.body, ts, history)
 
 
@@ -394,10 +418,26 @@ def failure_message(sol: Solution, dt: float | None) -> str:
     """
     f = sol.failure()
     p = f["particle"]
-    last = f["step"] - 1
+    start = f["step"] == 0  # the initial state failed its checks: no step was taken
+    last = max(f["step"] - 1, 0)
     st = sol.state
     lines = " and ".join(f["quantities"])
-    when = f"t = {f['step'] * dt:.6g}" if dt is not None else f"after t = {float(st.t):.6g}"
+    # Under a transformation that traces the state but not the status (jax.grad, jax.jvp outside
+    # jit), the step, the particle and the quantities are known, the state's values are not.
+    traced = not all(is_concrete(a) for a in jax.tree.leaves((st, sol.body)))
+    if dt is not None:
+        when = f"t = {f['step'] * dt:.6g}"
+    else:
+        when = "a variable step" if traced else f"after t = {float(st.t):.6g}"
+    if traced:
+        who = "the run" if p < 0 else f"particle {p} (at step {last})"
+        if start:
+            return f"jaxmpm: the initial state is not valid: {who}: {lines}. No step was taken."
+        return (
+            f"jaxmpm: the run broke down at step {f['step']} ({when}): {who}: {lines}. The state is "
+            f"traced by a transformation (jax.grad or jax.jvp); run without it to read the state of "
+            f"the last good step ({last})."
+        )
     if p < 0:
         who = "the run"
     else:
@@ -418,6 +458,11 @@ def failure_message(sol: Solution, dt: float | None) -> str:
                 f"particle {p} (X = {vec(X)}, x = {vec(x)}, J = det F = {J:.6g}"
                 f"{_energy(sol, p)} at step {last})"
             )
+    if start:
+        return (
+            f"jaxmpm: the initial state is not valid: {who}: {lines}. No step was taken; the initial "
+            f"state is in error.solution."
+        )
     return (
         f"jaxmpm: the run broke down at step {f['step']} ({when}): {who}: "
         f"{lines}. The state of the last good step ({last}) is in error.solution."
@@ -476,17 +521,24 @@ def prepare(
     """
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
+    if not isinstance(saveat, SaveAt):
+        raise ValueError(
+            f"saveat must be None or a jaxmpm.SaveAt (SaveAt(every=k, fields=...)), got {saveat!r}"
+        )
     if t_end is not None:
         if dt is not None or steps is not None:
             raise ValueError("give either dt and steps (fixed steps) or t_end, cfl and max_steps, not both")
         if max_steps is None:
             raise ValueError("max_steps (an integer >= 1, the bound of the scan) is required with t_end")
-        check_positive("t_end", t_end)
-        check_positive("cfl", cfl)
+        several = ": to run several values, jax.vmap over simulate or use jaxmpm.ensemble"
+        for name, value in (("t_end", t_end), ("cfl", cfl)):
+            check_positive(name, value)
+            check_scalar(name, value, several)
         dt, steps = ToEnd(t_end=t_end, cfl=cfl), max_steps
     elif dt is None or steps is None:
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
+    steps, artificial_cells = int(steps), int(artificial_cells)  # NumPy integers too: both are static
     model = Model(
         scene,
         interpolator,

@@ -407,6 +407,19 @@ def initial_state(model: Model, setup: Setup) -> State:
         v = jnp.stack([r.velocity.astype(dtype) for r in setup.regions])[reg]
         C = jnp.zeros((n, dim, dim), dtype=dtype) if model.transfer.affine else None
         sigma, e, internal = _initial_regions(model, setup, F)
+    # The initial state is checked as every step's is: a body that starts inverted or with a
+    # non-finite field (a scene's initial_position or velocity) fails at step 0, and no step is taken.
+    finite = _finite_rows(x) & _finite_rows(v) & _finite_rows(F) & _finite_rows(sigma)
+    if corners is not None:
+        finite = finite & _finite_rows(body.particle_corners(corners))
+    if e is not None:
+        finite = finite & jnp.isfinite(e)
+    for val in (internal or {}).values():
+        finite = finite & jnp.isfinite(val)
+    checks = [(st_bits.NONFINITE, ~finite), (st_bits.NONPOSITIVE_F, det(F) <= 0.0)]
+    if e is not None:
+        checks.append((st_bits.NEGATIVE_ENERGY, e < 0.0))
+    status, particle = st_bits.combine(checks, sharded=model.devices is not None)
     return State(
         t=jnp.zeros((), dtype=dtype),
         step=jnp.zeros((), dtype=jnp.int32),
@@ -419,9 +432,9 @@ def initial_state(model: Model, setup: Setup) -> State:
         x_traction=x_tr,
         e=e,
         internal=internal,
-        status=jnp.zeros((), dtype=jnp.int32),
-        fail_step=jnp.full((), -1, dtype=jnp.int32),
-        fail_particle=jnp.full((), -1, dtype=jnp.int32),
+        status=status,
+        fail_step=jnp.where(status != 0, 0, -1).astype(jnp.int32),
+        fail_particle=particle,
     )
 
 
@@ -736,7 +749,7 @@ def step(
         lambda z: (z.status, z.fail_step, z.fail_particle),
         kept,
         (
-            state.status | bits,
+            state.status | jnp.where(healthy, bits, 0),  # a state that failed already keeps its bits
             jnp.where(first, state.step + 1, state.fail_step),
             jnp.where(first, particle, state.fail_particle),
         ),

@@ -59,7 +59,7 @@ import numpy as np
 import optax
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from ._checks import check_int, check_positive, is_concrete
+from ._checks import check_int, check_nonnegative, check_positive, check_scalar, is_concrete
 from ._simulate import SaveAt, SimulationError, as_devices, failure_message, simulate
 from ._util import host
 from .interpolators import AbstractInterpolator
@@ -290,7 +290,11 @@ def _scale(scene, x_data) -> float:
     return float(scene.length)
 
 
-def _steps(ts, dt) -> int:
+def _steps(ts, dt, times: str = "ts") -> int:
+    """The steps of ``dt`` that reach the last of the times ``ts`` (both checked first)."""
+    check_positive("dt", dt)
+    check_scalar("dt", dt)
+    check_nonnegative(times, ts)
     return int(np.ceil(float(np.max(np.asarray(ts))) / float(dt) - 1e-9))
 
 
@@ -330,7 +334,8 @@ class _Model:
         self._r = jax.jit(jax.vmap(r_only))
 
     def physical(self, start_theta, theta) -> np.ndarray:
-        return self.off + np.exp(np.asarray(start_theta) + np.asarray(theta))
+        with np.errstate(over="ignore"):  # a step far out: inf, which the scene then refuses by name
+            return self.off + np.exp(np.asarray(start_theta) + np.asarray(theta))
 
     def _batched(self, fn, *args):
         """``fn`` of the members' rows, as NumPy arrays; with ``devices``, the rows are padded to a
@@ -364,12 +369,20 @@ class _Model:
     def why(self, values: np.ndarray) -> tuple[str, dict | None]:
         """A plain run at ``values`` (physical): what broke (the step, particle and quantity)."""
         trial = dict(zip(self.names, (float(v) for v in values)))
-        sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
+        where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
+        try:
+            sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
+        except ValueError as e:  # a point the fit's variables reach, not one the user gave
+            return f"the fit reached {where}, where {type(self.scene).__name__} has no run: {e}", None
         sol = simulate(
-            sc, self.interpolator, dt=self.dt, steps=_steps(self.t_data, self.dt), throw=False, **self.kwargs
+            sc,
+            self.interpolator,
+            dt=self.dt,
+            steps=_steps(self.t_data, self.dt, "t_data"),
+            throw=False,
+            **self.kwargs,
         )
         f = sol.failure()
-        where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
         if f is None:
             return f"the loss at {where} is not finite", None
         return (

@@ -116,6 +116,25 @@ def _with(scene: AbstractScene, values: dict) -> AbstractScene:
     return eqx.tree_at(lambda s: tuple(getattr(s, n) for n in names), scene, tuple(values[n] for n in names))
 
 
+def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
+    """Each varied value within what its parameter allows: ``dt``, ``t_end`` and ``cfl`` > 0, and a
+    scene parameter's smallest and largest value each accepted by the scene's own checks (with the
+    other parameters at the base scene's values)."""
+    base = scene.parameter_values()
+    for name, a in arrays.items():
+        if name in RUN_NAMES:
+            if not np.all(a > 0):
+                i = int(np.flatnonzero(~(a > 0))[0])
+                raise ValueError(f"vary[{name!r}] must be > 0, got {a[i]:g} (member {i})")
+            continue
+        for value in (float(a.min()), float(a.max())):
+            try:
+                type(scene)(**{**base, name: value})
+            except ValueError as e:
+                refused = f"vary[{name!r}] holds {value:g}, which {type(scene).__name__} refuses: {e}"
+                raise ValueError(refused) from None
+
+
 def ensemble(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
@@ -140,8 +159,8 @@ def ensemble(
 
     Raises:
         ValueError: bad ``vary`` (unknown or structural names, arrays of different lengths, values
-            that are not finite), bad run arguments, or more members than the device's memory holds
-            (estimated before anything is allocated).
+            that are not finite or that the parameter does not allow), bad run arguments, or more
+            members than the device's memory holds (estimated before anything is allocated).
     """
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
@@ -159,6 +178,7 @@ def ensemble(
     bad = [k for k, a in arrays.items() if not np.all(np.isfinite(a))]
     if bad:
         raise ValueError(f"vary values must be finite; not finite in {bad}")
+    _check_ranges(scene, arrays)
     simulate_kwargs.pop("throw", None)
     model, dt, steps, saveat = prepare(scene, interpolator, **simulate_kwargs)
     _memory.check_run(model, steps, saveat, members=n)  # before the batch is laid out

@@ -199,8 +199,27 @@ def smooth_mask(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> Bo
     return jax.vmap(scene.smooth, in_axes=(0, None))(body.X, t)
 
 
+def _refuse_broken(state: State, allow_broken: bool, what: str) -> None:
+    """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status)."""
+    status = state.status
+    if allow_broken or isinstance(status, jax.core.Tracer) or np.ndim(status) != 0 or int(status) == 0:
+        return
+    from . import status as st_bits
+
+    raise ValueError(
+        f"{what} of a run that broke down at step {int(state.fail_step)} "
+        f"({' and '.join(st_bits.describe(int(status)))}): its state is the last good one, at step "
+        f"{int(state.step)} (t = {float(state.t):.6g}), not the run's end. Pass allow_broken=True to "
+        f"measure that state anyway."
+    )
+
+
 def errors(
-    scene: AbstractScene, state: State, body: Body, where: Bool[Array, " n"] | None = None
+    scene: AbstractScene,
+    state: State,
+    body: Body,
+    where: Bool[Array, " n"] | None = None,
+    allow_broken: bool = False,
 ) -> dict[str, Array | None]:
     """Errors against the scene's exact solution, over real particles only.
 
@@ -216,15 +235,24 @@ def errors(
 
     Every entry is differentiable, with derivative 0 (not NaN) where an error is exactly zero.
 
+    The state of a run that broke down (``state.status != 0``) is its last good one, not its end, and
+    is refused unless ``allow_broken``. Traced (under ``jit`` or ``vmap``), the status cannot be read:
+    check it beside the errors (``Solution.status``, ``Ensemble.status``).
+
     Args:
         scene: the scene.
         state: the state.
         body: the reference configuration.
         where: one bool per particle, or ``None`` for all.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         Error name (``"separation_max"`` and ``EXACT_ERRORS``) to value or ``None``.
+
+    Raises:
+        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
     """
+    _refuse_broken(state, allow_broken, "errors() measures a finished run, and this state is")
     b = body.boundary
     has_interior = isinstance(b, jax.core.Tracer) or not bool(np.all(np.asarray(b)))
     ex = exact_fields(scene, body, state.t)
@@ -375,7 +403,9 @@ EULER_FIELDS = ("rho", "u", "p", "e")
 """The fields ``euler_errors`` compares: density, velocity, pressure, specific internal energy."""
 
 
-def euler_errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Array] | None:
+def euler_errors(
+    scene: AbstractScene, state: State, body: Body, allow_broken: bool = False
+) -> dict[str, Array] | None:
     """L1 errors of density, velocity, pressure and specific internal energy against an exact solution
     of the Euler equations, ``sum_p |f_p - f(x_p, t)| V_p`` (``V_p = V0_p det F_p``, the norm of
     ``int |f - f_exact| dx`` sampled at the particles; 1D).
@@ -387,11 +417,16 @@ def euler_errors(scene: AbstractScene, state: State, body: Body) -> dict[str, Ar
         scene: the scene.
         state: the state (``t > 0``; its ``e`` set).
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too (as for ``errors``).
 
     Returns:
         ``dict(rho_L1, u_L1, p_L1, e_L1)``, or ``None`` for a scene without an exact Euler solution or a
         run without an energy equation.
+
+    Raises:
+        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
     """
+    _refuse_broken(state, allow_broken, "euler_errors() measures a finished run, and this state is")
     if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
         return None
     ex = scene.solution(state.x[:, 0], state.t)

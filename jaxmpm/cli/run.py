@@ -306,7 +306,7 @@ def _check_vtk_folder(folder, overwrite: bool) -> None:
     """``--vtk DIR`` before the run: a folder that can be written, without the frames of another run
     (unless ``--overwrite``)."""
     path = writable_folder(folder, "--vtk")
-    old = sorted(p.name for p in path.iterdir() if p.suffix in (".vtu", ".vts", ".vtr", ".pvd"))
+    old = sorted(p.name for p in path.iterdir() if p.suffix in (".vtk", ".vtu", ".vts", ".vtr", ".pvd"))
     if old and not overwrite:
         raise UsageError(
             f"--vtk {folder} already holds ParaView files ({old[0]}{', ...' if len(old) > 1 else ''}); "
@@ -355,7 +355,8 @@ def report(
     where = None
     if scene.regions is not None and float(st.t) > 0:
         where = jm.metrics.smooth_mask(scene, sol.body, st.t)
-    err = jm.errors(scene, st, sol.body, where=where)
+    # After a breakdown this is the last good state's report, and it says so (status, failure).
+    err = jm.errors(scene, st, sol.body, where=where, allow_broken=True)
     if where is not None:
         err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where)
     diag = jm.diagnostics(scene, st, sol.body)
@@ -395,7 +396,7 @@ def report(
             particles.update({f"internal.{k}": floats(val) for k, val in st.internal.items()})
             if "lambda" in st.internal:  # a programmed burn's burn fraction
                 particles["lambda"] = floats(st.internal["lambda"])
-    euler = jm.metrics.euler_errors(scene, st, sol.body) if float(st.t) > 0 else None
+    euler = jm.metrics.euler_errors(scene, st, sol.body, allow_broken=True) if float(st.t) > 0 else None
     if euler is not None:
         err = {**err, **euler}
     if as_json:

@@ -2,6 +2,7 @@
 
 import abc
 import dataclasses
+import numbers
 from collections.abc import Callable
 
 import equinox as eqx
@@ -87,7 +88,11 @@ class AbstractScene(eqx.Module):
         check_int("cells", self.cells, 1)
         check_int("ppc", self.ppc, 1)
         check_int("pad", self.pad, 1)
-        if self.dim not in (1, 2, 3):
+        if (
+            isinstance(self.dim, bool)
+            or not isinstance(self.dim, numbers.Integral)
+            or self.dim not in (1, 2, 3)
+        ):
             raise ValueError(f"dim must be 1, 2 or 3, got {self.dim!r}")
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)

@@ -78,8 +78,8 @@ def axis_aligned(dim: int, cells_list, names=("spq", "gimp", "cpdi", "mpq")) -> 
             t0 = time.perf_counter()
             sol = jm.simulate(scene, jm.INTERPOLATORS[name](), dt=t_end / steps, steps=steps, throw=False)
             wall = time.perf_counter() - t0
-            e = jm.errors(scene, sol.state, sol.body)
             fail = sol.failure()
+            e = jm.errors(scene, sol.state, sol.body) if fail is None else None
             errs.append(float(e["x_rms_abs"]) if fail is None else float("nan"))
             rows.append(
                 dict(

@@ -13,6 +13,7 @@ import dataclasses
 import json
 import pathlib
 
+import jax.numpy as jnp
 import numpy as np
 
 import jaxmpm as jm
@@ -95,11 +96,18 @@ def state_at(sol: jm.Solution, k: int) -> jm.State:
         k: the step (``t = k DT``).
 
     Returns:
-        Its state at step ``k`` (``t``, ``x``, ``v``, ``F`` and ``sigma`` from the history).
+        Its state at step ``k`` (``t``, ``x``, ``v``, ``F`` and ``sigma`` from the history), healthy
+        (status 0) before a breakdown and with the run's status from it on.
     """
     h = sol.history
+    st = sol.state
+    failed_at = int(st.fail_step)
+    healthy = {}
+    if failed_at >= 0 and k < failed_at:  # a state the run reached before it broke down
+        none = jnp.full_like(st.fail_step, -1)
+        healthy = dict(status=jnp.zeros_like(st.status), fail_step=none, fail_particle=none)
     return dataclasses.replace(
-        sol.state, t=sol.ts[k], x=h["x"][k], v=h["v"][k], F=h["F"][k], sigma=h["sigma"][k]
+        st, t=sol.ts[k], x=h["x"][k], v=h["v"][k], F=h["F"][k], sigma=h["sigma"][k], **healthy
     )
 
 
@@ -118,7 +126,7 @@ def rows(runs: list[Run]) -> list[dict]:
             k = int(round(t / DT))
             failed_at = int(r.solution.state.fail_step)
             reached = failed_at < 0 or k < failed_at
-            err = jm.errors(r.scene, state_at(r.solution, k), r.solution.body)
+            err = jm.errors(r.scene, state_at(r.solution, k), r.solution.body) if reached else None
             row = dict(
                 method=r.method,
                 artificial_cells=r.artificial_cells,

@@ -58,7 +58,7 @@ def run(method: str, cells: int, repeats: int = 3) -> dict:
         jax.block_until_ready(jm.simulate(sc, METHODS[method](), **kw))
         wall_s = min(wall_s, time.perf_counter() - t0)
     fail = sol.failure()
-    err = jm.errors(sc, sol.state, sol.body)
+    err = jm.errors(sc, sol.state, sol.body) if fail is None else None
     return dict(
         method=method,
         cells=cells,

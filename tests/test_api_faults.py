@@ -1,0 +1,229 @@
+"""The Python API's faults: bad input refused by name before tracing, broken runs never read as
+finished (errors, derivatives, histories, batches), and an initial state checked as every step is."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+from jaxmpm import status as st_bits
+from jaxmpm.studies.talk import state_at
+
+DT = 1e-5
+
+
+def broken_scene():
+    """A gas squeezed so hard that its first step inverts every particle."""
+    return jm.GasExpansion(beta=-2e5, cells=4)
+
+
+def test_a_derivative_through_a_run_that_breaks_down_raises_the_breakdown():
+    """Under jax.grad the status is concrete and the state is not: the error names the step, the
+    particle and the quantities, and says the state is traced."""
+    with pytest.raises(
+        jm.SimulationError, match=r"broke down at step 1 \(t = 1e-05\): particle 0 \(at step 0\)"
+    ):
+        jm.gradient(broken_scene(), jm.SPQ(), ["beta"], dt=DT, steps=3)
+    with pytest.raises(jm.SimulationError, match="traced by a transformation"):
+        jax.grad(
+            lambda b: jm.simulate(jm.GasExpansion(beta=b, cells=4), jm.SPQ(), dt=DT, steps=3).state.F.sum()
+        )(-2e5)
+
+
+def test_errors_refuse_the_state_of_a_run_that_broke_down():
+    sc = broken_scene()
+    sol = jm.simulate(sc, jm.MPQ(), dt=DT, steps=20, artificial_cells=1, throw=False)
+    assert int(sol.status) != 0 and int(sol.state.step) == 0
+    with pytest.raises(
+        ValueError, match=r"errors\(\) measures a finished run.*broke down at step 1.*at step 0"
+    ):
+        jm.errors(sc, sol.state, sol.body)
+    # Asked for, the last good state (the initial one, exact) is measured.
+    assert float(jm.errors(sc, sol.state, sol.body, allow_broken=True)["F_rms_rel"]) == 0.0
+    # A healthy run is measured as before.
+    healthy = jm.GasExpansion(cells=4)
+    ok = jm.simulate(healthy, jm.MPQ(), dt=DT, steps=1, artificial_cells=1)  # exact: F = 1 + beta dt
+    assert float(jm.errors(healthy, ok.state, ok.body)["F_rms_rel"]) < 1e-12
+
+
+def test_errors_under_vmap_are_returned_beside_the_status():
+    def one(beta):
+        sc = jm.GasExpansion(beta=beta, cells=4)
+        sol = jm.simulate(sc, jm.SPQ(), dt=DT, steps=3, throw=False)
+        return sol.status, jm.errors(sc, sol.state, sol.body)["F_max_rel"]
+
+    status, err = jax.vmap(one)(jnp.array([200.0, -2e5]))
+    assert int(status[0]) == 0 and int(status[1]) != 0
+    assert np.all(np.isfinite(np.asarray(err)))
+
+
+def test_euler_errors_refuse_the_state_of_a_run_that_broke_down():
+    sc = jm.ShockTube(cells=20)
+    sol = jm.simulate(sc, jm.SPQ(), dt=1.0, steps=2, throw=False)  # far beyond the stable step
+    assert int(sol.status) & st_bits.CFL
+    with pytest.raises(ValueError, match=r"euler_errors\(\) measures a finished run"):
+        jm.euler_errors(sc, sol.state, sol.body)
+
+
+def test_saves_after_a_breakdown_carry_the_time_of_the_state_they_repeat():
+    save = jm.SaveAt(every=5, fields=("x",))
+    sol = jm.simulate(jm.GasExpansion(cells=4, pad=2), jm.MPQ(), dt=1e-4, steps=40, saveat=save, throw=False)
+    kept = int(sol.state.step)
+    assert int(sol.status) != 0 and 0 < kept < 40
+    ts = np.asarray(sol.ts)
+    frames = np.arange(ts.size) * 5
+    np.testing.assert_array_equal(ts[frames <= kept], np.arange(ts.size)[frames <= kept] * (5 * 1e-4))
+    np.testing.assert_array_equal(ts[frames > kept], float(sol.state.t))
+    x = np.asarray(sol.history["x"])
+    np.testing.assert_array_equal(
+        x[frames > kept], np.broadcast_to(np.asarray(sol.state.x), x[frames > kept].shape)
+    )
+    # A healthy run's times are k * (every * dt), bit for bit.
+    ok = jm.simulate(jm.GasExpansion(cells=4), jm.MPQ(), dt=1e-5, steps=40, saveat=save)
+    np.testing.assert_array_equal(np.asarray(ok.ts), np.arange(9) * (5 * 1e-5))
+
+
+def test_failure_of_a_batch_names_how_to_read_one_member():
+    run = lambda b: jm.simulate(jm.GasExpansion(beta=b, cells=4), jm.SPQ(), dt=DT, steps=3, throw=False)
+    sols = jax.vmap(run)(jnp.array([200.0, -2e5]))
+    with pytest.raises(ValueError, match=r"batch of shape \(2,\) \(jax.vmap\).*a\[i\]"):
+        sols.failure()
+    assert jax.tree.map(lambda a: a[0], sols).failure() is None
+    assert jax.tree.map(lambda a: a[1], sols).failure()["step"] == 1
+
+
+def test_numpy_integers_are_taken_as_the_integers_they_are():
+    sc = jm.GasExpansion(cells=4)
+    a = jm.simulate(
+        sc, jm.SPQ(), dt=DT, steps=np.int64(4), artificial_cells=np.int32(1), checkpoint=np.int64(2)
+    )
+    b = jm.simulate(sc, jm.SPQ(), dt=DT, steps=4, artificial_cells=1, checkpoint=2)
+    np.testing.assert_array_equal(np.asarray(a.state.F), np.asarray(b.state.F))
+    c = jm.simulate(sc, jm.SPQ(), t_end=1e-4, max_steps=np.int64(40))
+    assert int(c.status) == 0
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(dt=[DT], steps=2), r"dt must be one number, got an array of shape \(1,\)"),
+        (dict(dt=np.array([DT, 2 * DT]), steps=2), r"dt must be one number, got an array of shape \(2,\)"),
+        (dict(dt="1e-5", steps=2), "dt must be a real number, got '1e-5'"),
+        (dict(t_end=jnp.array([1e-4, 2e-4]), max_steps=10), "t_end must be one number"),
+        (dict(t_end=1e-4, cfl=[0.5], max_steps=10), "cfl must be one number"),
+        (dict(dt=DT, steps=2, cfl_limit=np.ones(2)), "cfl_limit must be one number"),
+        (dict(dt=DT, steps=2, saveat=3), r"saveat must be None or a jaxmpm.SaveAt .*got 3"),
+    ],
+)
+def test_run_arguments_of_the_wrong_shape_or_type_are_refused_by_name(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), **kwargs)
+
+
+def test_a_scene_parameter_with_a_shape_is_refused_outside_vmap_and_runs_under_it():
+    # (the suite's runtime type checks refuse such a scene at construction already; tree_at does not)
+    sc = eqx.tree_at(lambda s: s.beta, jm.GasExpansion(cells=4), jnp.array([100.0, 200.0]))
+    with pytest.raises(ValueError, match=r"GasExpansion.beta must be one number.*jax.vmap.*jaxmpm.ensemble"):
+        jm.simulate(sc, jm.SPQ(), dt=DT, steps=2)
+    run = lambda b: jm.simulate(jm.GasExpansion(beta=b, cells=4), jm.SPQ(), dt=DT, steps=2).state.F
+    assert jax.vmap(run)(sc.beta).shape[0] == 2
+
+
+def test_dim_must_be_an_integer():
+    # (the suite's runtime type checks refuse dim=2.0 at the call already; the scene's own check is
+    # what a user without them meets)
+    sc = jm.GasExpansion(dim=2, cells=2, pad=3)
+    object.__setattr__(sc, "dim", 2.0)
+    with pytest.raises(ValueError, match="dim must be 1, 2 or 3, got 2.0"):
+        jm.scenes.AbstractScene.__check_init__(sc)
+    object.__setattr__(sc, "dim", np.int64(2))
+    jm.scenes.AbstractScene.__check_init__(sc)
+
+
+@pytest.mark.parametrize(
+    "dt, ts, match",
+    [
+        (0.0, [0.0, 1e-4], "dt must be > 0, got 0.0"),
+        (float("nan"), [0.0, 1e-4], "dt must be finite"),
+        (1e-5, [-1.0, 1e-4], "ts must be >= 0"),
+    ],
+)
+def test_calibration_trajectory_checks_dt_and_times_first(dt, ts, match):
+    with pytest.raises(ValueError, match=match):
+        jm.calibrate.trajectory(jm.GasSlab(cells=4, pad=40), jm.MPQ(), ts, dt=dt)
+
+
+@pytest.mark.parametrize(
+    "vary, kwargs, match",
+    [
+        ({"dt": [DT, -DT]}, dict(dt=DT, steps=5), r"vary\['dt'\] must be > 0, got -1e-05 \(member 1\)"),
+        ({"dt": [DT, 0.0]}, dict(dt=DT, steps=5), r"vary\['dt'\] must be > 0, got 0 \(member 1\)"),
+        (
+            {"gamma": [1.4, 0.5]},
+            dict(dt=DT, steps=5),
+            r"vary\['gamma'\] holds 0.5, which GasExpansion refuses: gamma",
+        ),
+        (
+            {"P0": [2e5, 0.0]},
+            dict(dt=DT, steps=5),
+            r"vary\['P0'\] holds 0, which GasExpansion refuses: P0 must be > 0",
+        ),
+        ({"cfl": [0.5, -0.5]}, dict(t_end=1e-4, cfl=0.5, max_steps=20), r"vary\['cfl'\] must be > 0"),
+    ],
+)
+def test_ensemble_values_outside_what_a_parameter_allows_are_refused(vary, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        jm.ensemble(jm.GasExpansion(cells=4), jm.SPQ(), vary=vary, **kwargs)
+
+
+def inverted_scene():
+    """A manufactured field that starts with F = -1: the initial state is not a body."""
+    return jm.Manufactured(displacement_fn=lambda s, X, t: -2.0 * X + 0.0 * t, ends="traction", cells=4)
+
+
+@pytest.mark.parametrize("steps", [0, 1, 5])
+def test_an_initial_state_that_is_not_a_body_fails_at_step_0(steps):
+    sc = inverted_scene()
+    sol = jm.simulate(sc, jm.SPQ(), dt=1e-3, steps=steps, throw=False)
+    assert int(sol.status) == st_bits.NONFINITE | st_bits.NONPOSITIVE_F  # sigma is NaN at F = -1
+    assert int(sol.state.fail_step) == 0 and int(sol.state.fail_particle) == 0 and int(sol.state.step) == 0
+    with pytest.raises(
+        jm.SimulationError, match=r"the initial state is not valid: particle 0 .*F = -1 at step 0"
+    ) as e:
+        jm.simulate(sc, jm.SPQ(), dt=1e-3, steps=steps)
+    assert "No step was taken" in str(e.value)
+    np.testing.assert_array_equal(np.asarray(e.value.solution.state.F[:, 0, 0]), -1.0)
+
+
+def test_a_healthy_initial_state_is_unchanged_by_its_check():
+    sol = jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), dt=DT, steps=0)
+    assert int(sol.status) == 0 and int(sol.state.fail_step) == -1 and int(sol.state.fail_particle) == -1
+
+
+def test_the_talk_reads_the_frames_before_a_breakdown_as_healthy():
+    sol = jm.simulate(
+        jm.GasExpansion(cells=4, pad=2), jm.MPQ(), dt=1e-4, steps=40, saveat=jm.SaveAt(every=1), throw=False
+    )
+    failed_at = int(sol.state.fail_step)
+    assert failed_at > 2
+    before = state_at(sol, failed_at - 1)
+    assert int(before.status) == 0 and int(before.fail_step) == -1
+    assert float(jm.errors(jm.GasExpansion(cells=4, pad=2), before, sol.body)["F_max_rel"]) >= 0.0
+    assert int(state_at(sol, failed_at).status) == int(sol.status)
+
+
+@pytest.mark.parametrize(
+    "dt, steps, bit",
+    [(1e-3, 3, st_bits.CFL), (1e-5, 3000, st_bits.LEFT_GRID)],
+    ids=["time-step", "left-grid"],
+)
+def test_a_run_that_broke_down_by_its_step_or_the_grid_has_a_finite_derivative(dt, steps, bit):
+    """(docs/limitations.md: where the discarded step produced NaN, the derivative is NaN.)"""
+
+    def run(b):
+        return jm.simulate(jm.GasExpansion(beta=b, cells=2, pad=2), jm.SPQ(), dt=dt, steps=steps, throw=False)
+
+    assert int(run(200.0).status) == bit
+    assert np.isfinite(float(jax.grad(lambda b: jnp.sum(run(b).state.x))(200.0)))
