@@ -4,6 +4,7 @@ written or already hold another run's files."""
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -218,6 +219,91 @@ def test_vtk_and_study_folders_are_checked_first(capsys, tmp_path):
     assert "already holds ParaView files" in one_line(capsys.readouterr().err)
     assert {p.name: p.read_bytes() for p in frames.iterdir()} == before
     assert main(small + ["--vtk", str(frames), "--overwrite"]) == 0
+
+
+def test_vtk_refuses_a_folder_holding_a_legacy_vtk_file_of_the_users(capsys, tmp_path):
+    mine = tmp_path / "frames" / "particles_00000.vtk"
+    mine.parent.mkdir()
+    mine.write_text("MINE")
+    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "2"]
+    assert main(small + ["--vtk", str(mine.parent)]) == 2
+    assert "already holds ParaView files (particles_00000.vtk)" in one_line(capsys.readouterr().err)
+    assert mine.read_text() == "MINE"
+
+
+def test_resume_json_of_a_run_that_breaks_down_prints_the_last_good_state(capsys, tmp_path):
+    out = tmp_path / "broken.npz"
+    run = ["run", "gas-expansion", "cells=3", "--interpolator", "mpq", "--dt", "5e-4", "--steps", "40"]
+    assert main(run + ["--out", str(out), "--no-progress"]) == 3  # dt beyond the stable limit at step 1
+    capsys.readouterr()
+    assert main(["resume", str(out), "--json", "--no-progress"]) == 3
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    assert report["status"] == 8 and report["failure"]["step"] == 1 and report["failure"]["particle"] == 0
+    assert "The last good state is step 0" in one_line(captured.err)
+
+
+def test_a_t_end_run_that_breaks_at_its_first_step_gives_no_hint_that_is_refused(capsys):
+    argv = [
+        "run",
+        "gas-expansion",
+        "cells=3",
+        "--interpolator",
+        "mpq",
+        "--t-end",
+        "1e-2",
+        "--max-steps",
+        "100",
+    ]
+    assert main(argv + ["--cfl", "5"]) == 3
+    line = one_line(capsys.readouterr().err)
+    assert line.endswith("The last good state is step 0. It is the initial state.")
+    assert "--t-end 0" not in line
+
+
+def test_a_scene_parameter_given_under_both_its_names_is_refused(capsys):
+    argv = ["run", "detonation", "smooth=true", "smooth_burn=false", "--interpolator", "cpdi"]
+    assert main(argv + ["--dt", "1e-9", "--steps", "1"]) == 2
+    assert "smooth_burn is given twice: 'smooth=true' and 'smooth_burn=false'" in one_line(
+        capsys.readouterr().err
+    )
+
+
+@pytest.mark.parametrize(
+    "fit, match",
+    [
+        (dict(fitted={}, offsets={}, covariance_theta={}), "fits no parameter"),
+        (
+            dict(
+                fitted={"gamma": 1.000001, "P0": 101795.9},
+                offsets={"gamma": 1.0, "P0": 1e5},
+                covariance_theta={
+                    "gamma": {"gamma": 1.0e13, "P0": 9.8e5},
+                    "P0": {"gamma": 9.8e5, "P0": 0.0995},
+                },
+            ),
+            r"the data hardly determine gamma \(standard deviation of log\(gamma - offset\) 3.16e\+06\)",
+        ),
+    ],
+)
+def test_ensemble_from_a_fit_with_nothing_to_draw_from_is_refused(capsys, tmp_path, fit, match):
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(dict(scene="gas-slab", **fit)))
+    assert main(["ensemble", "gas-slab", "--members", "4", "--from-fit", str(path)]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert re.search(match, line), line
+
+
+def test_json_is_standard_json_with_null_for_values_that_are_not_finite(capsys):
+    argv = ["run", "gas-expansion", "cells=3", "beta=1e308", "--interpolator", "mpq", "--dt", "1e-5"]
+    main(argv + ["--steps", "5", "--json"])
+    out = capsys.readouterr().out
+
+    def refuse(token):
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    report = json.loads(out, parse_constant=refuse)
+    assert report["diagnostics"]["energy"] is None  # the kinetic energy overflowed
 
 
 def test_out_is_not_overwritten_without_the_flag(capsys, tmp_path):

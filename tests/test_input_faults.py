@@ -122,6 +122,27 @@ def test_calibrate_unreadable_data(capsys, tmp_path):
     usage(capsys, ["calibrate", "gas-slab", "--data", str(tmp_path)], "cannot read")
 
 
+def test_calibrate_refuses_a_column_named_twice(capsys, tmp_path):
+    data = tmp_path / "twice.csv"
+    data.write_text("t,x_free,t\n0,1,0\n0.002,1.9414,0.0001\n0.004,2.8827,0.0002\n")
+    usage(capsys, ["calibrate", "gas-slab", "--data", str(data)], "has 2 columns named 't'; it needs one")
+
+
+def test_calibrate_names_a_trial_point_the_fit_reached_as_the_fits_not_the_users(capsys, tmp_path):
+    """Data no gas slab can follow drive the fit's trial points to P0 = p_atm (exp underflows), a
+    scene that does not exist: that trial is rejected as a broken run would be, not reported as
+    the user's bad input, and numpy's overflow warnings stay quiet."""
+    data = tmp_path / "negative.csv"
+    data.write_text("t,x_free\n0,-5\n0.002,-6\n")
+    rc = main(["calibrate", "gas-slab", "--no-progress", "--data", str(data), "--json"])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert "Traceback" not in captured.err and "error:" not in captured.err
+    assert "RuntimeWarning" not in captured.err and "P0 must be > p_atm" not in captured.err
+    fit = json.loads(captured.out)
+    assert fit["std"]["gamma"] is None or not np.isfinite(fit["std"]["gamma"])  # nothing determined
+
+
 # -- calibrate --fit and --start ----------------------------------------------------------------------
 
 

@@ -80,12 +80,14 @@ def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
     cls = jm.SCENES[name]
     defaults = cls.parameters()
     aliases = ALIASES.get(name, {})
-    kwargs = {}
+    kwargs, spelled = {}, {}
     for given, raw in split(items, "scene parameters are name=value"):
         key = aliases.get(given, given)
         if key not in defaults:
             raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
-        kwargs[key] = _typed(given, raw, defaults[key])
+        if key in kwargs:  # the same parameter under another of its names
+            raise UsageError(f"{key} is given twice: {spelled[key]!r} and {given + '=' + raw!r}")
+        kwargs[key], spelled[key] = _typed(given, raw, defaults[key]), f"{given}={raw}"
     try:
         return cls(**kwargs)
     except ValueError as e:

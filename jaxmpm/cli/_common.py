@@ -3,6 +3,7 @@ input: 2, a run that broke down: 3), and JSON output."""
 
 import argparse
 import json
+import math
 import os
 import pathlib
 import re
@@ -62,7 +63,9 @@ def _line(solution: jm.Solution, dt: float | None, saved_in) -> str:
     st = solution.state
     step, p = failure["step"], failure["particle"]
     when = f"t = {step * dt:.6g}" if dt is not None else f"after t = {float(st.t):.6g}"
-    who = "the run" if p < 0 else f"particle {p} ({_particle(solution, p)} at step {step - 1})"
+    who = "the run" if p < 0 else f"particle {p} ({_particle(solution, p)} at step {max(step - 1, 0)})"
+    if step == 0:  # the initial state failed its checks
+        return f"jaxmpm: the initial state is not valid: {who}: {' and '.join(failure['quantities'])}."
     last = int(st.step)
     if saved_in is not None:
         hint = f"Everything up to it is saved in {saved_in}."
@@ -70,6 +73,8 @@ def _line(solution: jm.Solution, dt: float | None, saved_in) -> str:
         hint = f"Rerun with --steps {last} to see the last good state."
     elif failure["status"] & jm.status.MAX_STEPS:
         hint = ""
+    elif float(st.t) == 0:  # --t-end must be > 0
+        hint = "It is the initial state."
     else:
         hint = f"Rerun with --t-end {float(st.t):.9g} to see the last good state."
     line = (
@@ -134,12 +139,24 @@ def writable_folder(folder, option: str) -> pathlib.Path:
 
 
 def print_json(obj) -> None:
-    """Print ``obj`` on stdout as one JSON object; floats in shortest round-trip form (full float64).
+    """Print ``obj`` on stdout as one JSON object; floats in shortest round-trip form (full float64),
+    and a float that is not finite as ``null`` (standard JSON has no ``Infinity`` or ``NaN``).
 
     Args:
         obj: a JSON-serialisable object.
     """
-    print(json.dumps(obj))
+    print(json.dumps(_finite_or_null(obj), allow_nan=False))
+
+
+def _finite_or_null(obj):
+    """``obj`` with every float that is not finite replaced by ``None``."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite_or_null(v) for v in obj]
+    return obj
 
 
 def floats(a) -> list:

@@ -131,6 +131,10 @@ def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.n
         raise UsageError(
             f"--data: {path} needs a header with the columns t,{column}; its header is {shown[:80]!r}"
         )
+    names = [str(h).strip() for h in header]
+    for name in ("t", column):
+        if names.count(name) > 1:
+            raise UsageError(f"--data: {path} has {names.count(name)} columns named {name!r}; it needs one")
     columns = {str(h).strip(): h for h in header}
     t, x = [], []
     for line, row in rows:

@@ -281,6 +281,8 @@ def read_fit(path: str, scene, allowed) -> dict:
     if obj.get("scene", scene.name) != scene.name:
         raise UsageError(f"--from-fit: {path} is a fit of {obj['scene']!r}, not of {scene.name!r}")
     names = list(obj["fitted"])
+    if not names:
+        raise UsageError(f"--from-fit: {path} fits no parameter (its fitted is empty)")
     for k in names:
         if k not in allowed:
             raise UsageError(f"--from-fit: {k!r} is not a continuous parameter of {scene.name}")
@@ -302,6 +304,13 @@ def read_fit(path: str, scene, allowed) -> dict:
     if not np.allclose(C, C.T, rtol=1e-9, atol=0) or w[0] < -1e-12 * max(abs(w[-1]), 1e-300):
         raise UsageError(f"--from-fit: {path}: covariance_theta is not symmetric positive semi-definite")
     sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+    loose = [k for i, k in enumerate(names) if 6.0 * sd[i] > 700.0]  # exp(6 sd) beyond a float64
+    if loose:
+        k = loose[0]
+        raise UsageError(
+            f"--from-fit: {path}: the data hardly determine {k} (standard deviation of log({k} - offset) "
+            f"{sd[names.index(k)]:.3g}): members drawn from this fit would span no physical range"
+        )
     bounds = {
         k: tuple(offs[k] + (fitted[k] - offs[k]) * math.exp(z * sd[i]) for z in (-6.0, 6.0))
         for i, k in enumerate(names)

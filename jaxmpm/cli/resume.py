@@ -57,10 +57,22 @@ def command(args) -> int:
     except OSError as e:  # e.g. the disk filled up while saving: the previous save is intact
         raise UsageError(f"cannot write {args.file}: {e.strerror or e}") from None
     except jm.SimulationError as e:
-        dt = jm.long_run.load(args.file)[1]["dt"]  # saved with the failure: the run's fixed step
-        raise Breakdown(local_solution(e.solution), dt=dt, saved_in=pathlib.Path(args.file)) from None
+        meta = jm.long_run.load(args.file)[1]  # saved with the failure
+        failed = local_solution(e.solution)
+        if args.json:  # the last good state's report, with its status and failure, as run prints it
+            report(_settings(meta, args.file), _scene(meta), failed, None, None, as_json=True)
+        raise Breakdown(failed, dt=meta["dt"], saved_in=pathlib.Path(args.file)) from None
     sol = local_solution(sol)
-    scene = jm.SCENES[meta["scene"]](**meta["params"])
+    return report(_settings(meta, args.file), _scene(meta), sol, compile_s, wall_s, as_json=args.json)
+
+
+def _scene(meta: dict):
+    """The saved run's scene."""
+    return jm.SCENES[meta["scene"]](**meta["params"])
+
+
+def _settings(meta: dict, file) -> dict:
+    """The saved run's settings as ``report`` prints them first."""
     run = dict(
         scene=meta["scene"],
         interpolator=meta["interpolator"]["name"],
@@ -69,11 +81,11 @@ def command(args) -> int:
         ordering=meta["ordering"],
         dt=meta["dt"],
         steps=meta["steps"],
-        out=str(args.file),
+        out=str(file),
     )
     if meta.get("devices") is not None:
         run["devices"] = meta["devices"]
-    return report(run, scene, sol, compile_s, wall_s, as_json=args.json)
+    return run
 
 
 def _one_line(e: Exception) -> str:
