@@ -242,6 +242,17 @@ def test_bench_command_rejects_bad_input(argv, named, capsys):
     assert named in err and err.count("\n") == 1
 
 
+def test_bench_out_is_checked_before_the_benchmark_runs(monkeypatch, capsys, tmp_path):
+    ran = []
+    monkeypatch.setattr(bench, "run", lambda *a, **k: ran.append(1))
+    a_file = tmp_path / "a_file"
+    a_file.write_text("mine")
+    assert cli.main(["bench", "--sizes", "200", "--no-extras", "--out", str(a_file)]) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "is a file, not a folder" in err and err.count("\n") == 1
+    assert ran == [] and a_file.read_text() == "mine"
+
+
 def test_bench_command_passes_codes_and_sizes_of_every_dim(monkeypatch, capsys):
     """``--codes`` names the codes for every dimension; ``--sizes-2d`` and ``--sizes-3d`` reach the
     benchmark as particle counts (the run itself replaced by a recorder)."""

@@ -11,7 +11,7 @@ import sys
 import jaxmpm as jm
 
 from . import _assign
-from ._common import UsageError, print_json
+from ._common import UsageError, print_json, writable_folder
 
 
 def add_parser(subparsers) -> None:
@@ -132,6 +132,8 @@ def command(args) -> int:
         if args.interpolators is None
         else _assign.choices(args.interpolators, "--interpolators", tuple(jm.INTERPOLATORS))
     )
+    if args.out:
+        writable_folder(args.out, "--out")  # before minutes of benchmark, not after
     missing = [c for c in codes if not bench.available(c)]
     if missing:
         print(
