@@ -725,7 +725,7 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
     interpolator and transfer it names exist and accept its parameters; every state (and history)
     array the run needs is there with the shape and dtype the run gives it; and the arrays are those
     of the run the metadata describes (``body.X`` and ``body.boundary`` equal those of the named
-    scene, ``state.step`` the saved ``step``).
+    scene, ``state.step`` the saved ``step``, at most the run's ``steps``; a state of status 0 finite).
 
     Args:
         path: the saved run.
@@ -1010,6 +1010,13 @@ def _load(path: pathlib.Path, on_devices: bool = True):
         raise ValueError(
             f"{path}: state.status is {int(state.status)} but its meta says status {meta['status']!r}"
         )
+    if meta["step"] > meta["steps"]:
+        raise ValueError(f"{path}: its meta says step {meta['step']} of a run of {meta['steps']} steps")
+    if int(state.status) == 0:  # a healthy state is finite: every step checks it
+        for name in ("x", "v", "F", "sigma", "e"):
+            a = fields.get(name)
+            if a is not None and not np.all(np.isfinite(a)):
+                raise ValueError(f"{path}: state.{name} is not finite, yet its status is 0 (healthy)")
     history = ts = None
     held = sorted(k for k in arrays if k.startswith("history."))
     if saveat.every is None:

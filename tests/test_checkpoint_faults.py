@@ -86,6 +86,16 @@ def assert_refused(path, capsys, *fragments, error=ValueError):
     return message
 
 
+def test_a_healthy_state_that_is_not_finite(good, tmp_path, capsys):
+    x = arrays_of(good)["state.x"].copy()
+    x[1, 0] = np.nan
+    assert_refused(variant(good, tmp_path, state__x=x), capsys, "state.x is not finite, yet its status is 0")
+
+
+def test_a_step_past_the_runs_steps(good, tmp_path, capsys):
+    assert_refused(variant(good, tmp_path, meta={"steps": 10}), capsys, "step 20 of a run of 10 steps")
+
+
 def test_the_good_file_loads(good):
     sol, meta = long_run.load(good)
     assert meta["step"] == 20 and int(sol.state.step) == 20 and sol.history["x"].shape[0] == 5
