@@ -59,6 +59,10 @@ class SaveAt(eqx.Module):
     def __check_init__(self):
         if self.every is not None:
             check_int("SaveAt.every", self.every, 1)
+        if isinstance(self.fields, str) or not isinstance(self.fields, tuple | list):
+            raise ValueError(
+                f"SaveAt.fields must be a tuple of names among {STATE_FIELDS}, got {self.fields!r}"
+            )
         unknown = [f for f in self.fields if f not in STATE_FIELDS]
         if unknown:
             raise ValueError(f"SaveAt.fields must be among {STATE_FIELDS}, got {unknown}")
@@ -470,7 +474,7 @@ def failure_message(sol: Solution, dt: float | None) -> str:
 
 
 def _finish(sol: Solution, dt, throw: bool) -> Solution:
-    if not throw:
+    if not throw:  # (simulate checks that throw is a bool before the run)
         return sol
     if is_concrete(sol.state.status) and (dt is None or is_concrete(dt)):
         if int(sol.state.status) != 0:
@@ -632,8 +636,14 @@ def simulate(
         volume_average=volume_average,
         devices=devices,
     )
+    _check_throw(throw)
     sol = _run_scan_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
     return _finish(sol, dt, throw)
+
+
+def _check_throw(throw) -> None:
+    if not isinstance(throw, bool | np.bool_):
+        raise ValueError(f"throw must be True or False, got {throw!r}")
 
 
 @typing.no_type_check  # validates every argument itself, raising ValueError (see _validate)
@@ -653,6 +663,7 @@ def simulate_timed(
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
     """
     model, dt_arr, n, saveat = prepare(scene, interpolator, **kwargs)
+    _check_throw(throw)
     t0 = time.perf_counter()
     block = checkpoint_block(kwargs.get("checkpoint", False), n)
     compiled = _run_scan_jit.lower(model, dt_arr, n, saveat, block).compile()

@@ -144,6 +144,7 @@ def separation(state: State, body: Body) -> Float[Array, " n_minus_1"]:
     """
     if state.x.shape[1] != 1:
         raise ValueError("separation is the 1D diagnostic; in 2D and 3D use corner_gap")
+    _check_particles(state, body)
     return _separation(state.x, state.F, body.r0)
 
 
@@ -250,9 +251,18 @@ def errors(
         Error name (``"separation_max"`` and ``EXACT_ERRORS``) to value or ``None``.
 
     Raises:
-        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
+        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``), the
+            state and the body have different particle counts, or ``where`` is not one bool per
+            particle.
     """
     _refuse_broken(state, allow_broken, "errors() measures a finished run, and this state is")
+    _check_particles(state, body)
+    if where is not None and not isinstance(where, jax.core.Tracer):
+        if np.shape(where) != (body.n,) or np.asarray(where).dtype != np.bool_:
+            raise ValueError(
+                f"where must be one bool per particle, shape ({body.n},), got "
+                f"{np.asarray(where).dtype} of shape {np.shape(where)}"
+            )
     b = body.boundary
     has_interior = isinstance(b, jax.core.Tracer) or not bool(np.all(np.asarray(b)))
     ex = exact_fields(scene, body, state.t)
@@ -313,7 +323,11 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
 
     Returns:
         ``dict(mass, momentum, energy_kinetic, energy_internal, energy)``.
+
+    Raises:
+        ValueError: the state and the body have different particle counts.
     """
+    _check_particles(state, body)
     return _diagnostics(scene, state.v, state.F, state.e, body)
 
 
@@ -427,6 +441,7 @@ def euler_errors(
         ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
     """
     _refuse_broken(state, allow_broken, "euler_errors() measures a finished run, and this state is")
+    _check_particles(state, body)
     if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
         return None
     ex = scene.solution(state.x[:, 0], state.t)

@@ -227,3 +227,32 @@ def test_a_run_that_broke_down_by_its_step_or_the_grid_has_a_finite_derivative(d
 
     assert int(run(200.0).status) == bit
     assert np.isfinite(float(jax.grad(lambda b: jnp.sum(run(b).state.x))(200.0)))
+
+
+def test_saveat_fields_is_a_tuple_of_names_and_throw_a_bool():
+    # (the suite's runtime type checks refuse fields="x" at the call already; this is the check a
+    # user without them meets)
+    save = jm.SaveAt(every=1)
+    object.__setattr__(save, "fields", "x")
+    with pytest.raises(ValueError, match="SaveAt.fields must be a tuple of names .*got 'x'"):
+        save.__check_init__()
+    with pytest.raises(ValueError, match="throw must be True or False, got 'no'"):
+        jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), dt=DT, steps=1, throw="no")
+
+
+def test_metrics_refuse_a_state_and_a_body_of_different_runs():
+    small, large = jm.GasExpansion(cells=4), jm.GasExpansion(cells=6)
+    a = jm.simulate(small, jm.SPQ(), dt=DT, steps=1)
+    b = jm.simulate(large, jm.SPQ(), dt=DT, steps=1)
+    for call in (
+        lambda: jm.errors(small, a.state, b.body),
+        lambda: jm.diagnostics(small, a.state, b.body),
+        lambda: jm.separation(a.state, b.body),
+    ):
+        with pytest.raises(ValueError, match="the state has 8 particles and the body 12"):
+            call()
+    with pytest.raises(
+        ValueError, match=r"where must be one bool per particle, shape \(8,\), got bool of shape \(3,\)"
+    ):
+        jm.errors(small, a.state, a.body, where=jnp.ones(3, dtype=bool))
+    assert float(jm.errors(small, a.state, a.body, where=jnp.ones(8, dtype=bool))["F_max_rel"]) >= 0.0
