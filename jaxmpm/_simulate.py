@@ -42,6 +42,10 @@ MAX_STEP_COUNT = 2**31 - 1
 """The most steps one run may take: ``State.step`` is a 32-bit integer."""
 
 
+# How a parameter given as an array is to be run instead (appended to its one-number message).
+_SEVERAL = ": to run several values, jax.vmap over simulate or use jaxmpm.ensemble"
+
+
 class SaveAt(eqx.Module):
     """What ``simulate`` keeps besides the final state.
 
@@ -161,17 +165,16 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         raise ValueError(
             f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
         )
-    several = ": to run several values, jax.vmap over simulate or use jaxmpm.ensemble"
     for f in dataclasses.fields(scene):
         if f.metadata.get("converter") is as_float:
-            check_scalar(f"{type(scene).__name__}.{f.name}", getattr(scene, f.name), several)
+            check_scalar(f"{type(scene).__name__}.{f.name}", getattr(scene, f.name), _SEVERAL)
     if isinstance(dt, ToEnd):
         check_positive("t_end", dt.t_end)
         check_positive("cfl", dt.cfl)
         check_int("max_steps", steps, 1)
     else:
         check_positive("dt", dt)
-        check_scalar("dt", dt, several)
+        check_scalar("dt", dt, _SEVERAL)
         check_int("steps", steps, 0)
     if steps > MAX_STEP_COUNT:
         name = "max_steps" if isinstance(dt, ToEnd) else "steps"
@@ -534,10 +537,9 @@ def prepare(
             raise ValueError("give either dt and steps (fixed steps) or t_end, cfl and max_steps, not both")
         if max_steps is None:
             raise ValueError("max_steps (an integer >= 1, the bound of the scan) is required with t_end")
-        several = ": to run several values, jax.vmap over simulate or use jaxmpm.ensemble"
         for name, value in (("t_end", t_end), ("cfl", cfl)):
             check_positive(name, value)
-            check_scalar(name, value, several)
+            check_scalar(name, value, _SEVERAL)
         dt, steps = ToEnd(t_end=t_end, cfl=cfl), max_steps
     elif dt is None or steps is None:
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")

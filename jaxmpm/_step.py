@@ -409,13 +409,7 @@ def initial_state(model: Model, setup: Setup) -> State:
         sigma, e, internal = _initial_regions(model, setup, F)
     # The initial state is checked as every step's is: a body that starts inverted or with a
     # non-finite field (a scene's initial_position or velocity) fails at step 0, and no step is taken.
-    finite = _finite_rows(x) & _finite_rows(v) & _finite_rows(F) & _finite_rows(sigma)
-    if corners is not None:
-        finite = finite & _finite_rows(body.particle_corners(corners))
-    if e is not None:
-        finite = finite & jnp.isfinite(e)
-    for val in (internal or {}).values():
-        finite = finite & jnp.isfinite(val)
+    finite = _finite_particles(body, x, v, F, sigma, corners, e, internal)
     checks = [(st_bits.NONFINITE, ~finite), (st_bits.NONPOSITIVE_F, det(F) <= 0.0)]
     if e is not None:
         checks.append((st_bits.NEGATIVE_ENERGY, e < 0.0))
@@ -700,14 +694,7 @@ def step(
 
     # Checks: a failing step is discarded, so the state kept is always the last good one.
     checks = []
-    finite = _finite_rows(x_p) & _finite_rows(v_p) & _finite_rows(F_new) & _finite_rows(sigma)
-    if corners is not None:
-        finite = finite & _finite_rows(body.particle_corners(corners))
-    if e_new is not None:
-        finite = finite & jnp.isfinite(e_new)
-    if internal is not None:
-        for val in internal.values():
-            finite = finite & jnp.isfinite(val)
+    finite = _finite_particles(body, x_p, v_p, F_new, sigma, corners, e_new, internal)
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     if e_new is not None:
@@ -971,6 +958,19 @@ def fold_massless(
         kept = kept + jnp.where(m[..., None], moved, 0.0)
         stray = jnp.where(m[..., None], 0.0, moved)
     return kept.reshape((-1,) + f.shape[d:])
+
+
+def _finite_particles(body: Body, x, v, F, sigma, corners, e, internal) -> Bool[Array, " n"]:
+    """Whether every field of each particle is finite (the corners, energy and internal variables
+    where the run has them): the ``NONFINITE`` check of the initial state and of every step."""
+    finite = _finite_rows(x) & _finite_rows(v) & _finite_rows(F) & _finite_rows(sigma)
+    if corners is not None:
+        finite = finite & _finite_rows(body.particle_corners(corners))
+    if e is not None:
+        finite = finite & jnp.isfinite(e)
+    for val in (internal or {}).values():
+        finite = finite & jnp.isfinite(val)
+    return finite
 
 
 def _finite_rows(a: Array) -> Bool[Array, " n"]:
