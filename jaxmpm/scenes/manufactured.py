@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_nonnegative, check_positive
+from .._checks import check_finite, check_greater, check_nonnegative, check_positive
 from .._util import as_float
 from ..materials import AdiabaticGas, NeoHookean
 from ._displacement import AbstractDisplacementScene
@@ -73,8 +73,13 @@ class Manufactured(AbstractDisplacementScene):
         if self.ends not in ENDS:
             raise ValueError(f"ends must be one of {ENDS}, got {self.ends!r}")
         check_finite("A", self.A)
+        # Both models' constants are checked whichever model runs: a bad value is refused, not
+        # ignored because the other model would have used it.
         check_nonnegative("lam", self.lam)
         check_positive("mu", self.mu)
+        check_positive("P0", self.P0)
+        check_greater("gamma", self.gamma, 1.0)
+        check_nonnegative("p_atm", self.p_atm)
 
     @property
     def left(self) -> str:
