@@ -544,6 +544,11 @@ def prepare(
     elif dt is None or steps is None:
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
+    if isinstance(dt, ToEnd) and cfl_limit is not None and is_concrete(cfl) and float(cfl) > cfl_limit:
+        raise ValueError(
+            f"cfl = {float(cfl):g} is above cfl_limit = {cfl_limit:g}: every full step would fail its "
+            "stability check; give cfl <= cfl_limit (or cfl_limit=None to run without the check)"
+        )
     steps, artificial_cells = int(steps), int(artificial_cells)  # NumPy integers too: both are static
     model = Model(
         scene,

@@ -256,3 +256,32 @@ def test_metrics_refuse_a_state_and_a_body_of_different_runs():
     ):
         jm.errors(small, a.state, a.body, where=jnp.ones(3, dtype=bool))
     assert float(jm.errors(small, a.state, a.body, where=jnp.ones(8, dtype=bool))["F_max_rel"]) >= 0.0
+
+
+def test_a_courant_number_above_the_stability_limit_is_refused_before_the_run():
+    """Every full step of a run to t_end at cfl > cfl_limit would fail its own check."""
+    sc = jm.GasExpansion(cells=4)
+    with pytest.raises(ValueError, match=r"cfl = 1.5 is above cfl_limit = 1: every full step would fail"):
+        jm.simulate(sc, jm.SPQ(), t_end=1e-4, cfl=1.5, max_steps=10)
+    with pytest.raises(ValueError, match=r"cfl = 0.8 is above cfl_limit = 0.5"):
+        jm.simulate(sc, jm.SPQ(), t_end=1e-4, cfl=0.8, cfl_limit=0.5, max_steps=10)
+    # at the limit it runs, and without the check any Courant number is the user's to choose
+    assert int(jm.simulate(sc, jm.SPQ(), t_end=1e-4, cfl=1.0, max_steps=40).status) == 0
+    sol = jm.simulate(sc, jm.SPQ(), t_end=1e-4, cfl=1.5, cfl_limit=None, max_steps=40)
+    assert int(sol.status) == 0 and float(sol.state.t) == 1e-4
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(gamma=-1.0), "gamma must be > 1.0, got -1.0"),
+        (dict(P0=0.0), "P0 must be > 0"),
+        (dict(p_atm=-1.0), "p_atm must be >= 0"),
+        (dict(model="gas", mu=-1.0), "mu must be > 0"),
+        (dict(model="gas", lam=-1.0), "lam must be >= 0"),
+    ],
+)
+def test_the_constants_of_the_model_not_in_use_are_checked_too(kwargs, match):
+    """A bad constant is refused, not ignored because the other model would have used it."""
+    with pytest.raises(ValueError, match=match):
+        jm.Manufactured(**kwargs)

@@ -11,6 +11,7 @@ import sys
 import time
 
 import pytest
+from helpers import usage
 
 import jaxmpm.cli.run as cli_run
 from jaxmpm import long_run
@@ -320,3 +321,58 @@ def test_out_is_not_overwritten_without_the_flag(capsys, tmp_path):
     assert long_run.load(out)[1]["step"] == 30
     assert main(small + ["--steps", "3", "--overwrite"]) == 2  # nothing to replace
     assert "--overwrite goes with" in one_line(capsys.readouterr().err)
+
+
+SMALL = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "2"]
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (SMALL + ["--steps", "3"], "--steps is given twice"),
+        (SMALL + ["--interpolator", "mpq"], "--interpolator is given twice"),
+        (SMALL + ["--max-steps", "4"], "--max-steps goes with --t-end"),
+        (SMALL + ["--cfl", "0.3"], "--cfl goes with --t-end"),
+        (SMALL + ["--chunk", "4"], "--chunk needs --out FILE"),
+        (SMALL + ["--vtk", ""], "--vtk needs a folder, got an empty name"),
+        (SMALL + ["beta=2", "--bogus"], "unrecognized arguments: --bogus"),
+        (
+            SMALL[:4] + ["--t-end", "1e-4", "--max-steps", "9", "--cfl", "0.8", "--cfl-limit", "0.5"],
+            "--cfl 0.8 is above --cfl-limit 0.5: every full step would fail",
+        ),
+        (
+            ["ensemble", "gas-expansion", "--members", "2", "--vary", "beta=1:2", "--cfl", "1.5"],
+            "--cfl must be <= 1 (every full step above it fails its check), got 1.5",
+        ),
+        (["study", "talk", "--small", "--out", ""], "--out needs a folder, got an empty name"),
+        (["bench", "--sizes", "100", "--out", ""], "--out needs a folder, got an empty name"),
+        (
+            ["ensemble", "gas-expansion", "--members", "2", "--vary", "beta=1:2", "--dt", "1e-5"]
+            + ["--steps", "2", "--max-steps", "3"],
+            "--max-steps goes with a run to an end time, not --dt and --steps",
+        ),
+        (
+            ["ensemble", "gas-expansion", "--members", "2", "--members", "3", "--vary", "beta=1:2"],
+            "--members is given twice",
+        ),
+    ],
+)
+def test_an_option_given_twice_or_doing_nothing_is_refused(capsys, tmp_path, monkeypatch, argv, match):
+    monkeypatch.chdir(tmp_path)  # an empty folder name must not write into the current folder
+    usage(capsys, argv, match)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_scene_parameters_may_follow_the_options(capsys):
+    """``name=value`` after the options is a scene parameter, as before them: the same report."""
+    reports = []
+    for argv in (
+        ["run", "gas-expansion", "beta=2", "cells=3"] + SMALL[2:] + ["--json"],
+        SMALL + ["beta=2", "--json", "cells=3"],
+    ):
+        assert main(argv) == 0
+        reports.append(json.loads(capsys.readouterr().out))
+    assert reports[0]["params"]["beta"] == 2.0 and reports[0]["params"]["cells"] == 3
+    for report in reports:
+        report.pop("wall_s"), report.pop("compile_s")
+    assert reports[0] == reports[1]

@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _dispatch(argv):
     try:
-        args = parser().parse_args(argv)
+        args = parser().parse_command(argv)
         return args.handler(args)
     except UsageError as e:
         print(f"jaxmpm: error: {_one_line(e)}", file=sys.stderr)

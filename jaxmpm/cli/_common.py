@@ -14,9 +14,24 @@ import numpy as np
 
 import jaxmpm as jm
 
+_ASSIGNMENT = re.compile(r"^[A-Za-z_]\w*=")  # a scene parameter, name=value
+
 
 class UsageError(Exception):
     """Bad input from the command line: one line, exit status 2."""
+
+
+class _StoreOnce(argparse._StoreAction):
+    """argparse's ``store``, refusing an option given twice (``--steps 5 --steps 7``) rather than
+    keeping the last, and recording in ``namespace.given`` the options that were given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if option_string is not None:
+            given = namespace.__dict__.setdefault("given", set())
+            if self.dest in given:
+                parser.error(f"{'/'.join(self.option_strings)} is given twice")
+            given.add(self.dest)
+        super().__call__(parser, namespace, values, option_string)
 
 
 class Parser(argparse.ArgumentParser):
@@ -24,11 +39,38 @@ class Parser(argparse.ArgumentParser):
 
     argparse takes ``-1e-5`` for an option (its matcher has no exponent); this one reads it as a
     number, so that the check that follows can say "dt must be > 0", not "expected one argument".
+    An option that takes a value may be given once (argparse keeps the last of several).
     """
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+        self.register("action", None, _StoreOnce)
+        self.register("action", "store", _StoreOnce)
+
+    def parse_command(self, argv: list[str] | None):
+        """Parse a command line whose ``name=value`` scene parameters may also follow its options
+        (``jaxmpm run gas --dt 1e-5 --steps 2 beta=2``), which argparse alone leaves unrecognized.
+
+        Args:
+            argv: the arguments after ``jaxmpm`` (default: ``sys.argv[1:]``).
+
+        Returns:
+            The namespace; ``given`` holds the names of the options given a value.
+
+        Raises:
+            UsageError: bad input.
+        """
+        args, extra = self.parse_known_args(argv)
+        late = [a for a in extra if _ASSIGNMENT.match(a)]
+        if late and hasattr(args, "params"):
+            args.params = list(args.params) + late
+            extra = [a for a in extra if a not in late]
+        if extra:
+            self.error(f"unrecognized arguments: {' '.join(extra)}")
+        if not hasattr(args, "given"):
+            args.given = set()
+        return args
 
     def error(self, message):
         """Raise ``UsageError(message)`` instead of printing the usage and exiting.
@@ -123,8 +165,10 @@ def writable_folder(folder, option: str) -> pathlib.Path:
         The folder, which exists and takes a new file.
 
     Raises:
-        UsageError: ``folder`` is a file, cannot be made, or cannot be written.
+        UsageError: ``folder`` is empty, a file, cannot be made, or cannot be written.
     """
+    if not str(folder).strip():
+        raise UsageError(f"{option} needs a folder, got an empty name")
     path = pathlib.Path(folder)
     if path.exists() and not path.is_dir():
         raise UsageError(f"{option} {folder} is a file, not a folder")

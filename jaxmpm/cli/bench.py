@@ -132,7 +132,7 @@ def command(args) -> int:
         if args.interpolators is None
         else _assign.choices(args.interpolators, "--interpolators", tuple(jm.INTERPOLATORS))
     )
-    if args.out:
+    if args.out is not None:
         writable_folder(args.out, "--out")  # before minutes of benchmark, not after
     missing = [c for c in codes if not bench.available(c)]
     if missing:
@@ -150,7 +150,7 @@ def command(args) -> int:
         sizes_2d=sizes_2d,
         sizes_3d=sizes_3d,
     )
-    if args.out:
+    if args.out is not None:
         paths = bench.write(result, args.out)
         if not args.json:
             print("wrote " + ", ".join(str(p) for p in paths))

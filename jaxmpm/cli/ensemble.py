@@ -100,10 +100,17 @@ def command(args) -> int:
     if args.dt is not None or args.steps is not None:
         if args.dt is None or args.steps is None or args.t_end is not None:
             raise UsageError("give --dt and --steps together, or --t-end (or neither: two wave transits)")
+        for dest, option in (("max_steps", "--max-steps"), ("cfl", "--cfl")):
+            if dest in args.given:
+                raise UsageError(f"{option} goes with a run to an end time, not --dt and --steps")
         timing = dict(dt=args.dt, steps=args.steps)
     else:  # the fastest member sets the bound: sound speeds at the ranges' corners
         try:
             check_positive("--cfl", args.cfl)
+            if args.cfl > 1.0:  # the stability check's limit (simulate's cfl_limit)
+                raise ValueError(
+                    f"--cfl must be <= 1 (every full step above it fails its check), got {args.cfl:g}"
+                )
             if args.t_end is not None:
                 check_positive("--t-end", args.t_end)
             if args.max_steps is not None:

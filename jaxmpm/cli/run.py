@@ -148,13 +148,23 @@ def command(args) -> int:
             raise UsageError("--t-end needs --max-steps N (the bound on the number of steps)")
         if args.out is not None or args.grad is not None:
             raise UsageError("--out and --grad take fixed steps (--dt and --steps), not --t-end")
+        if cfl is not None and args.cfl > cfl:
+            raise UsageError(
+                f"--cfl {args.cfl:g} is above --cfl-limit {cfl:g}: every full step would fail its "
+                "stability check; give --cfl <= --cfl-limit (or --cfl-limit none)"
+            )
         timing = dict(t_end=args.t_end, cfl=args.cfl, max_steps=args.max_steps)
     else:
         if args.dt is None or args.steps is None:
             raise UsageError("give --dt and --steps, or --t-end and --max-steps")
+        for dest, option in (("max_steps", "--max-steps"), ("cfl", "--cfl")):
+            if dest in args.given:
+                raise UsageError(f"{option} goes with --t-end (a run to an end time), not --dt and --steps")
         timing = dict(dt=args.dt, steps=args.steps)
     if args.overwrite and args.out is None and args.vtk is None:
         raise UsageError("--overwrite goes with --out FILE or --vtk DIR (what it would replace)")
+    if "chunk" in args.given and args.out is None:
+        raise UsageError("--chunk needs --out FILE (a run saved in chunks of that many steps)")
     if args.checkpoint_every is not None and args.out is None:
         raise UsageError("--checkpoint-every needs --out FILE to write the checkpoints to")
     if args.vtk_every is not None and args.vtk is None:
