@@ -143,6 +143,17 @@ def test_calibrate_names_a_trial_point_the_fit_reached_as_the_fits_not_the_users
     assert fit["std"]["gamma"] is None or not np.isfinite(fit["std"]["gamma"])  # nothing determined
 
 
+def test_calibrate_refuses_data_far_beyond_any_start_unless_the_grid_is_given(capsys, tmp_path):
+    """x_free in the wrong units (1e6) would size a grid of millions of cells for every trial run."""
+    data = tmp_path / "far.csv"
+    data.write_text("t,x_free\n0,1\n0.002,1e6\n")
+    line = usage(capsys, ["calibrate", "gas-slab", "--data", str(data)], "--data: x_free reaches 1e+06")
+    assert "more than 100 times as far as any start's slab can go" in line
+    pad = jm.scenes.gas_slab.pad_for(jm.GasSlab(), 1.25e6)
+    assert f"a grid of {pad:,} cells beyond the slab" in line and "give pad=N" in line
+    assert pad == 39_999_972  # h = 1/32: the 1.25 of headroom over 1e6, less the slab, plus 4
+
+
 # -- calibrate --fit and --start ----------------------------------------------------------------------
 
 

@@ -83,6 +83,9 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=command)
 
 
+_FARTHEST = 100.0  # data beyond this many times the starts' reach are refused unless pad is given
+
+
 def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.ndarray]:
     """The measured trajectory: a CSV file (UTF-8 text) with a header and the columns ``t`` and
     ``column`` (``x_free``, or ``v_plate`` for the Gurney slab); other columns are ignored, blank lines
@@ -278,7 +281,15 @@ def command(args) -> int:
     t, x = read_trajectory(args.data, column)
     # a grid for the gas slab's data and the start's expansion, with room for trial runs
     if "pad" not in given and column == "x_free":
-        reach = max(float(np.max(x)), *(s.max_reach() for s in start_scenes))
+        start_reach = max(s.max_reach() for s in start_scenes)
+        if float(np.max(x)) > _FARTHEST * start_reach:
+            raise UsageError(
+                f"--data: x_free reaches {float(np.max(x)):.6g}, more than {_FARTHEST:g} times as far as any "
+                f"start's slab can go ({start_reach:.6g}), which asks for a grid of "
+                f"{pad_for(scene, 1.25 * float(np.max(x))):,} cells beyond the slab: check the units of "
+                "x_free, or give pad=N (those cells) to size the grid yourself"
+            )
+        reach = max(float(np.max(x)), start_reach)
         pad = max(scene.pad, pad_for(scene, 1.25 * reach))
         if pad != scene.pad:
             scene = type(scene)(**{**scene.parameter_values(), "pad": pad})
