@@ -486,9 +486,10 @@ def _finish(sol: Solution, dt, throw: bool) -> Solution:
     return eqx.error_if(
         sol,
         sol.state.status != 0,
-        "jaxmpm: the run broke down (F <= 0, non-finite state, a particle left the grid, or dt beyond "
-        "the stable limit). Run with throw=False and read Solution.failure() for the step, particle "
-        "and quantity.",
+        "jaxmpm: the run broke down: a step failed one of its checks (F <= 0, a non-finite state, a "
+        "particle leaving the grid, dt beyond the stable limit, negative internal energy, ...; see "
+        "jaxmpm.status). Inside a jit the step, particle and quantity cannot be named: run with "
+        "throw=False and read Solution.failure(), or call simulate outside the jit.",
     )
 
 

@@ -285,3 +285,12 @@ def test_the_constants_of_the_model_not_in_use_are_checked_too(kwargs, match):
     """A bad constant is refused, not ignored because the other model would have used it."""
     with pytest.raises(ValueError, match=match):
         jm.Manufactured(**kwargs)
+
+
+def test_a_run_breaking_inside_the_users_jit_raises_and_says_how_to_see_the_failure():
+    """Under jax.jit the status is not known until the compiled run has finished: the error is a
+    runtime error of JAX's, whose message says how to read the step and particle."""
+    run = jax.jit(lambda b: jm.simulate(jm.GasExpansion(beta=b, cells=4), jm.SPQ(), dt=DT, steps=3).state.F)
+    with pytest.raises(RuntimeError, match="Inside a jit the step, particle and quantity cannot be named"):
+        jax.block_until_ready(run(-2e5))
+    assert np.isfinite(np.asarray(run(200.0))).all()  # a healthy run under the same jit
