@@ -565,6 +565,65 @@ def step(
     Returns:
         The new state, or on failure the old one with its status, failing step and particle set.
     """
+    new, bits, particle, healthy = _proposal(model, setup, state, dt, limit, active, t_new)
+    ok = healthy & (bits == 0)
+    # In 2D and 3D a select, which XLA's CPU backend fuses into the loops that compute the new state
+    # (a lax.cond copies the whole state out of its branch every step). In 1D the two take about the
+    # same time (the performance docs), and the step uses the cond. Under vmap the cond becomes the
+    # select too.
+    if setup.grid.dim == 1:
+        kept = jax.lax.cond(ok, lambda: new, lambda: state)
+    else:
+        kept = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, state)
+    first = healthy & (bits != 0)
+    return eqx.tree_at(
+        lambda z: (z.status, z.fail_step, z.fail_particle),
+        kept,
+        (
+            state.status | jnp.where(healthy, bits, 0),  # a state that failed already keeps its bits
+            jnp.where(first, state.step + 1, state.fail_step),
+            jnp.where(first, particle, state.fail_particle),
+        ),
+    )
+
+
+@eqx.filter_custom_jvp
+def _proposal(model, setup, state, dt, limit, active, t_new):
+    """The step proposed from ``state``, its failed checks and their first particle.
+
+    Returns ``(new, bits, particle, healthy)``: the step is taken where ``healthy & (bits == 0)``.
+    Its derivative is the step's own where the step is taken, and zero where it is discarded (the
+    rule below), so that a discarded step's non-finite values (an inverted particle's ``J^-gamma``)
+    do not reach the kept state's reverse-mode derivative as ``0 * NaN``.
+    """
+    return _propose(model, setup, state, dt, limit, active, t_new)
+
+
+@_proposal.def_jvp
+def _proposal_jvp(primals, tangents):
+    # The tangents of a discarded step's inputs are zeroed before its linearisation is applied, so
+    # the transposed (reverse-mode) rule zeroes the cotangents that the linearisation returns,
+    # rather than multiplying the step's partial derivatives by zero. Where the step is taken the
+    # tangents pass unchanged.
+    leaves, tree = jax.tree.flatten(primals, is_leaf=lambda a: a is None)
+    t_leaves = tree.flatten_up_to(tangents)
+    where = [i for i, t in enumerate(t_leaves) if t is not None]
+
+    def propose(*diff):
+        args = list(leaves)
+        for i, a in zip(where, diff):
+            args[i] = a
+        return _propose(*jax.tree.unflatten(tree, args))
+
+    out, linear = jax.linearize(propose, *(leaves[i] for i in where))
+    _, bits, _, healthy = out
+    ok = healthy & (bits == 0)
+    t_out = linear(*(jnp.where(ok, t_leaves[i], jnp.zeros_like(t_leaves[i])) for i in where))
+    t_out = jax.tree.map(lambda t: None if t.dtype == jax.dtypes.float0 else t, t_out)
+    return out, t_out
+
+
+def _propose(model, setup, state, dt, limit, active, t_new):
     scene, interp, transfer = model.scene, model.interpolator, model.transfer
     grid, body, mat = setup.grid, setup.body, setup.material
     x, v, F, t = state.x, state.v, state.F, state.t
@@ -722,25 +781,7 @@ def step(
         healthy = (state.status == 0) & active
     else:
         healthy = state.status == 0
-    ok = healthy & (bits == 0)
-    # In 2D and 3D a select, which XLA's CPU backend fuses into the loops that compute the new state
-    # (a lax.cond copies the whole state out of its branch every step). In 1D the two take about the
-    # same time (the performance docs), and the step uses the cond. Under vmap the cond becomes the
-    # select too.
-    if grid.dim == 1:
-        kept = jax.lax.cond(ok, lambda: new, lambda: state)
-    else:
-        kept = jax.tree.map(lambda a, b: jnp.where(ok, a, b), new, state)
-    first = healthy & (bits != 0)
-    return eqx.tree_at(
-        lambda z: (z.status, z.fail_step, z.fail_particle),
-        kept,
-        (
-            state.status | jnp.where(healthy, bits, 0),  # a state that failed already keeps its bits
-            jnp.where(first, state.step + 1, state.fail_step),
-            jnp.where(first, particle, state.fail_particle),
-        ),
-    )
+    return new, bits, particle, healthy
 
 
 def _materialised(dim: int, fields: tuple) -> tuple:

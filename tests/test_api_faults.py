@@ -220,13 +220,37 @@ def test_the_talk_reads_the_frames_before_a_breakdown_as_healthy():
     ids=["time-step", "left-grid"],
 )
 def test_a_run_that_broke_down_by_its_step_or_the_grid_has_a_finite_derivative(dt, steps, bit):
-    """(docs/limitations.md: where the discarded step produced NaN, the derivative is NaN.)"""
-
     def run(b):
         return jm.simulate(jm.GasExpansion(beta=b, cells=2, pad=2), jm.SPQ(), dt=dt, steps=steps, throw=False)
 
     assert int(run(200.0).status) == bit
     assert np.isfinite(float(jax.grad(lambda b: jnp.sum(run(b).state.x))(200.0)))
+
+
+@pytest.mark.parametrize("name, dim", [("spq", 1), ("mpq", 1), ("cpdi", 2)])
+def test_the_derivative_of_a_run_broken_by_a_non_finite_step_is_that_of_its_last_good_state(name, dim):
+    """A compression that inverts the particles at step 6: the discarded step is NaN, and the
+    derivatives of the kept state (reverse, forward, and reverse under vmap beside a healthy member)
+    are those of the healthy run that stops at step 5, not NaN."""
+
+    def run(b, steps):
+        sc = jm.GasExpansion(beta=b, cells=4, dim=dim, pad=4)
+        return jm.simulate(sc, jm.INTERPOLATORS[name](), dt=DT, steps=steps, cfl_limit=None, throw=False)
+
+    def f(b, steps):
+        return jnp.sum(run(b, steps).state.x ** 2)
+
+    b = -2e4  # J = (1 + b t)^dim reaches 0 at t = 5e-5, step 5
+    broken = run(b, 12)
+    assert int(broken.state.fail_step) == 6 and int(broken.status) & st_bits.NONFINITE
+    assert int(run(b, 5).status) == 0
+    last_good = float(jax.grad(f)(b, 5))
+    assert np.isfinite(last_good) and last_good != 0.0
+    assert float(jax.grad(f)(b, 12)) == last_good
+    assert float(jax.jacfwd(f)(b, 12)) == float(jax.jacfwd(f)(b, 5))
+    both = jax.vmap(jax.grad(f), (0, None))(jnp.array([b, 200.0]), 12)
+    # (the batched program may sum in another order: equal to a few ulps)
+    np.testing.assert_allclose(np.asarray(both), [last_good, float(jax.grad(f)(200.0, 12))], rtol=1e-14)
 
 
 def test_saveat_fields_is_a_tuple_of_names_and_throw_a_bool():
