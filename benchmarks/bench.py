@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 from jaxmpm.status import NONFINITE
 from jaxmpm.studies import machine
 
@@ -638,7 +639,7 @@ def write(result: dict, out_dir: str | os.PathLike) -> list[pathlib.Path]:
         w = csv.DictWriter(f, fieldnames=list(result["rows"][0]))
         w.writeheader()
         w.writerows(result["rows"])
-    paths[1].write_text(json.dumps(result, indent=1))
+    paths[1].write_text(dumps(result, indent=1))
     paths[2].write_text(table(result) + "\n")
     return paths
 

@@ -194,9 +194,11 @@ def main(argv=None) -> int:
     text = table(result)
     print(text)
     if args.out:
+        from jaxmpm._json import dumps
+
         out = pathlib.Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "sharded.json").write_text(json.dumps(result, indent=1) + "\n")
+        (out / "sharded.json").write_text(dumps(result, indent=1) + "\n")
         (out / "sharded.md").write_text(text)
     return 0
 

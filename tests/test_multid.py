@@ -351,3 +351,16 @@ def test_a_2d_breakdown_names_the_particle_by_its_vectors():
     scene = jm.Blast(P0=2e5, rho0=2.0, pad=40)
     with pytest.raises(jm.SimulationError, match=r"particle \d+ \(X = \(0\.\d+, 0\.\d+\), x = \(.*J = det F"):
         jm.simulate(scene, jm.MPQ(), dt=0.25 * float(scene.h) / float(scene.wave_speed), steps=30)
+
+
+def test_the_axis_aligned_table_says_which_runs_broke_down():
+    from jaxmpm.studies.multid import axis_aligned_markdown
+
+    row = dict(interpolator="spq", particles=256, steps=20, wall_s=1.0, order_fit=float("nan"))
+    rows = [
+        dict(row, cells=8, x_rms_abs=7.7e-3, F_rms_rel=7.7e-2, order_finest=float("nan"), failure=None),
+        dict(row, cells=16, x_rms_abs=None, F_rms_rel=float("nan"), order_finest=None, failure="F at step 3"),
+    ]
+    lines = axis_aligned_markdown(rows, "2D")
+    assert lines[-2] == "| spq | 8 | 256 | 20 | ok | 7.700e-03 | 7.700e-02 | - | - | 1.0 |"
+    assert lines[-1] == "| spq | 16 | 256 | 20 | broken down: F at step 3 | - | - | - | - | 1.0 |"

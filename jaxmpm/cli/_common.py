@@ -2,8 +2,6 @@
 input: 2, a run that broke down: 3), and JSON output."""
 
 import argparse
-import json
-import math
 import os
 import pathlib
 import re
@@ -13,6 +11,7 @@ import tempfile
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 
 _ASSIGNMENT = re.compile(r"^[A-Za-z_]\w*=")  # a scene parameter, name=value
 
@@ -189,18 +188,7 @@ def print_json(obj) -> None:
     Args:
         obj: a JSON-serialisable object.
     """
-    print(json.dumps(_finite_or_null(obj), allow_nan=False))
-
-
-def _finite_or_null(obj):
-    """``obj`` with every float that is not finite replaced by ``None``."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite_or_null(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite_or_null(v) for v in obj]
-    return obj
+    print(dumps(obj))
 
 
 def floats(a) -> list:

@@ -31,7 +31,6 @@ the 1D reference: the error the method makes in 1D at the disk's resolution.
 
 from __future__ import annotations
 
-import json
 import math
 import pathlib
 import time
@@ -41,6 +40,7 @@ import numpy as np
 
 import jaxmpm as jm
 from jaxmpm import metrics
+from jaxmpm._json import dumps
 
 from ._runtime import machine, require_float64
 
@@ -878,7 +878,7 @@ def main(out: str, small: bool = False) -> dict:
     saved["rows"] = _jsonable(rows)
     for key in ("refinement", "refinement_tracked"):
         saved[key] = dict(result[key], rows=_jsonable(result[key]["rows"]))
-    (outdir / "blast.json").write_text(json.dumps(saved, indent=1, default=str, allow_nan=False))
+    (outdir / "blast.json").write_text(dumps(saved, indent=1, default=str))
     paths = _figures(result, outdir)
     print(text)
     print("wrote " + ", ".join(str(p) for p in [outdir / "table.md", outdir / "blast.json", *paths]))

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import math
 import pathlib
 import time
@@ -25,6 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 
 from ._methods import METHODS
 from ._runtime import require_float64
@@ -664,9 +664,7 @@ def _write_shocks(outdir, text, rows, order_rows, drift) -> dict:
     (outdir / "shocks.md").write_text(text)
     _write_csv(outdir / "shock_runs.csv", rows)
     _write_csv(outdir / "shocks.csv", order_rows)
-    (outdir / "shocks.json").write_text(
-        json.dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1)
-    )
+    (outdir / "shocks.json").write_text(dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1))
     print(text)
     return dict(shock_runs=rows, shock_orders=order_rows, energy_drift=drift)
 
@@ -691,6 +689,6 @@ def _ladder(outdir, all_cases, methods, transfers, release) -> dict:
     (outdir / "orders.md").write_text(text)
     _write_csv(outdir / "runs.csv", rows)
     _write_csv(outdir / "orders.csv", order_rows)
-    (outdir / "orders.json").write_text(json.dumps(dict(runs=rows, orders=order_rows), indent=1))
+    (outdir / "orders.json").write_text(dumps(dict(runs=rows, orders=order_rows), indent=1))
     print(text)
     return dict(runs=rows, orders=order_rows)

@@ -23,7 +23,6 @@ used. ``jaxmpm study detonation --out DIR`` writes ``detonation.md``, ``detonati
 from __future__ import annotations
 
 import csv
-import json
 import math
 import pathlib
 import time
@@ -34,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 from jaxmpm.explosives import BURNS
 
 from ._runtime import machine, number, require_float64, run_status, status_cell
@@ -957,7 +957,7 @@ def main(out: str, small: bool = False) -> dict:
     result["wall_s"] = time.perf_counter() - t0
     text = _markdown(result)
     (outdir / "detonation.md").write_text(text)
-    (outdir / "detonation.json").write_text(json.dumps(result, indent=1, default=str, allow_nan=False))
+    (outdir / "detonation.json").write_text(dumps(result, indent=1, default=str))
     _csv(result, outdir / "detonation_runs.csv")
     paths = _figures(result, outdir)
     print(text)

@@ -21,13 +21,13 @@ MPQ and CPDI2). A run that broke down is reported as such and none of its number
 
 from __future__ import annotations
 
-import json
 import pathlib
 import time
 
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 
 from ._runtime import machine, number, require_float64, run_status, status_cell
 
@@ -357,7 +357,7 @@ def main(out: str, small: bool = False) -> dict:
     result["wall_s"] = time.perf_counter() - t0
     text = _markdown(result)
     (outdir / "gurney.md").write_text(text)
-    (outdir / "gurney.json").write_text(json.dumps(result, indent=1, default=str, allow_nan=False))
+    (outdir / "gurney.json").write_text(dumps(result, indent=1, default=str))
     print(text)
     print("wrote " + ", ".join(str(p) for p in [outdir / "gurney.md", outdir / "gurney.json", *paths]))
     return result

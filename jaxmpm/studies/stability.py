@@ -30,7 +30,6 @@ products' ``F`` against the exact CJ-Taylor wave where no signal from the air ha
 from __future__ import annotations
 
 import csv
-import json
 import math
 import pathlib
 import time
@@ -40,6 +39,7 @@ import numpy as np
 
 import jaxmpm as jm
 from jaxmpm import status as st_bits
+from jaxmpm._json import dumps
 from jaxmpm.geometry import Box
 
 from ._methods import METHODS
@@ -636,9 +636,9 @@ def main(out: str, small: bool = False, release: Callable[[], object] | None = N
         w = csv.DictWriter(f, fieldnames=fields)
         w.writeheader()
         w.writerows(results)
-    (outdir / "stability.json").write_text(json.dumps(results, indent=1, default=float))
-    (outdir / "stiff_shock.json").write_text(json.dumps(shocks, indent=1, default=float))
-    (outdir / "detonation_air.json").write_text(json.dumps(detonations, indent=1, default=float))
+    (outdir / "stability.json").write_text(dumps(results, indent=1))
+    (outdir / "stiff_shock.json").write_text(dumps(shocks, indent=1))
+    (outdir / "detonation_air.json").write_text(dumps(detonations, indent=1))
     figure(results, labels, outdir / "stability.png")
     print(text)
     return dict(results=results, labels=labels, stiff_shock=shocks, detonation_air=detonations)

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import pathlib
 
 import jax.numpy as jnp
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 
 from ._methods import METHODS
 from ._runtime import require_float64
@@ -283,7 +283,7 @@ def main(out: str, small: bool = False) -> dict:
         w.writeheader()
         w.writerows(table)
     (outdir / "results.json").write_text(
-        json.dumps(dict(params=params, betas=list(betas), dt=DT, rows=table), indent=1)
+        dumps(dict(params=params, betas=list(betas), dt=DT, rows=table), indent=1)
     )
     paths = figures(runs, outdir, betas)
     print(header + markdown_table(table))

@@ -9,13 +9,13 @@ per resolution. Error is the RMS displacement error (absolute) at the end time.
 from __future__ import annotations
 
 import csv
-import json
 import pathlib
 import time
 
 import numpy as np
 
 import jaxmpm as jm
+from jaxmpm._json import dumps
 
 from ._methods import METHODS
 from ._runtime import require_float64
@@ -154,7 +154,7 @@ def main(out: str, small: bool = False) -> dict:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
         w.writerows(rows)
-    (outdir / "work_precision.json").write_text(json.dumps(rows, indent=1))
+    (outdir / "work_precision.json").write_text(dumps(rows, indent=1))
     figure(rows, outdir / "work_precision.png")
     print(text)
     return dict(rows=rows)
