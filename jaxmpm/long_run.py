@@ -212,13 +212,18 @@ def _scene_params(scene) -> dict:
 def _write_npz(path: pathlib.Path, arrays: dict) -> None:
     """Write ``arrays`` to ``path`` atomically: a temporary file, fsync, then an atomic rename.
 
-    A crash at any point leaves either the previous file or the new one, never a broken one.
+    A crash at any point leaves either the previous file or the new one, never a broken one; a write
+    that fails (a full disk) removes its temporary file and raises the ``OSError``.
     """
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-        f.flush()
-        os.fsync(f.fileno())
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     os.replace(tmp, path)
     try:  # make the rename itself durable
         fd = os.open(path.parent, os.O_RDONLY)
@@ -556,7 +561,9 @@ def run_timed(
         devices: as for ``simulate``; the file records their count, and ``resume`` continues on as
             many devices (bit for bit on the same layout). With several processes, the first
             process writes ``out`` (the whole run) and the others wait for it.
-        chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end).
+        chunk: steps per compiled chunk (the chunk compiles once; the last is masked past the end). A
+            chunk longer than the run is cut to the run's steps (rounded up to a multiple of
+            ``saveat.every``), and saved so.
         out: a ``.npz`` file to write the run to (at the end, at checkpoints, on breakdown and on
             Ctrl-C). Its folder must exist and be writable.
         checkpoint_every: write ``out`` every this many chunks (``None``: only at the end).
@@ -599,6 +606,7 @@ def run_timed(
     )
     if saveat.every is not None and chunk % saveat.every:
         raise ValueError(f"chunk must be a multiple of saveat.every, got chunk={chunk}, every={saveat.every}")
+    chunk = min(chunk, max(-(-steps // (saveat.every or 1)) * (saveat.every or 1), 1))  # no more than the run
     params = _scene_params(scene)
     out = None if out is None else _check_out(out, overwrite=overwrite)
     meta = dict(
@@ -1006,6 +1014,13 @@ def _load(path: pathlib.Path, on_devices: bool = True):
         state = State(**place_particles(model, fields, X.shape[0]))
     if int(state.step) != meta["step"]:
         raise ValueError(f"{path}: state.step is {int(state.step)} but its meta says step {meta['step']}")
+    t = fields["t"]
+    t_step = np.asarray(meta["step"], dtype=t.dtype) * np.asarray(host(dt_arr), dtype=t.dtype)
+    if t != t_step:  # every fixed step sets t = step * dt exactly
+        raise ValueError(
+            f"{path}: state.t is {float(t)!r} but step {meta['step']} of dt = {meta['dt']!r} is at "
+            f"t = {float(t_step)!r}; the file was edited or belongs to another run"
+        )
     if "status" in meta and meta["status"] != int(state.status):
         raise ValueError(
             f"{path}: state.status is {int(state.status)} but its meta says status {meta['status']!r}"

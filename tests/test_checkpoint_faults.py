@@ -410,3 +410,9 @@ def test_resume_rewrites_its_own_file_only(good, tmp_path):
     long_run.resume(path, progress=False)  # its own file: allowed
     long_run.resume(path, out=other, overwrite=True, progress=False)
     assert long_run.load(other)[1]["step"] == 20
+
+
+def test_a_time_that_is_not_step_times_dt(good, tmp_path, capsys):
+    t = arrays_of(good)["state.t"]
+    edited = variant(good, tmp_path, state__t=np.asarray(t * (1 + 1e-12), dtype=t.dtype))
+    assert_refused(edited, capsys, "state.t is", "but step 20 of dt = 1e-05 is at t = 0.0002")

@@ -377,3 +377,96 @@ def test_scene_parameters_may_follow_the_options(capsys):
     for report in reports:
         report.pop("wall_s"), report.pop("compile_s")
     assert reports[0] == reports[1]
+
+
+def test_a_study_keeps_the_files_of_others_in_its_folder(capsys, tmp_path, monkeypatch):
+    import jaxmpm.studies.talk as talk
+
+    ran = []
+    monkeypatch.setattr(talk, "main", lambda out, small: ran.append(out))  # what --out gets, not the study
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "table.md").write_text("MINE")
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(mine)], "--out")
+    assert "already holds files that `jaxmpm study talk` did not write (table.md)" in line
+    assert "--overwrite" in line and ran == [] and (mine / "table.md").read_text() == "MINE"
+    (mine / ".jaxmpm-study").write_text("convergence\n")  # another study's folder
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(mine)], "--out")
+    assert "already holds files that `jaxmpm study convergence` wrote (table.md)" in line
+    assert main(["study", "talk", "--small", "--out", str(mine), "--overwrite"]) == 0
+    assert (mine / ".jaxmpm-study").read_text() == "talk\n" and ran == [str(mine)]
+    assert main(["study", "talk", "--small", "--out", str(mine)]) == 0  # its own folder, again
+    fresh = tmp_path / "fresh"
+    assert main(["study", "talk", "--small", "--out", str(fresh)]) == 0
+    assert (fresh / ".jaxmpm-study").read_text() == "talk\n" and len(ran) == 3
+
+
+def test_a_study_that_draws_figures_checks_for_matplotlib_first(capsys, tmp_path, monkeypatch):
+    import jaxmpm.studies.convergence as convergence
+    import jaxmpm.studies.talk as talk
+
+    ran = []
+    monkeypatch.setattr(talk, "main", lambda out, small: ran.append("talk"))
+    monkeypatch.setattr(convergence, "main", lambda out, small, release: ran.append("convergence"))
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` fails
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(tmp_path / "talk")], "matplotlib")
+    assert "study talk draws figures with matplotlib, which is not installed" in line
+    assert ran == [] and not (tmp_path / "talk").exists()
+    assert main(["study", "convergence", "--small", "--out", str(tmp_path / "orders")]) == 0  # tables only
+    assert ran == ["convergence"]
+
+
+def test_a_full_disk_while_saving_a_run_is_one_line(capsys, tmp_path):
+    out = tmp_path / "run.npz"
+    (tmp_path / "run.npz.tmp").symlink_to("/dev/full")  # every write there fails: no space left
+    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "4", "--no-progress"]
+    line = usage(capsys, small + ["--out", str(out)], f"cannot write {out}")
+    assert "No space left on device" in line and not out.exists()
+
+
+def test_a_run_of_zero_steps_writes_its_one_frame(capsys, tmp_path):
+    frames = tmp_path / "frames"
+    argv = ["run", "gas-expansion", "--interpolator", "mpq", "--dt", "1e-5", "--steps", "0"]
+    assert main(argv + ["--vtk", str(frames), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["vtk"] == dict(dir=str(frames), frames=1, every=1)
+    assert sorted(p.name for p in frames.iterdir()) == [
+        "grid.pvd",
+        "grid_00000.vtk",
+        "particles.pvd",
+        "particles_00000.vtk",
+    ]
+
+
+def test_vtk_overwrite_leaves_one_run_in_the_folder(capsys, tmp_path):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    (frames / "notes.txt").write_text("MINE")
+    argv = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5"]
+    assert main(argv + ["--steps", "20", "--vtk", str(frames), "--vtk-every", "2"]) == 0
+    assert len(list(frames.glob("particles_*.vtk"))) == 11
+    assert main(argv + ["--steps", "2", "--vtk", str(frames), "--vtk-every", "1", "--overwrite"]) == 0
+    capsys.readouterr()
+    names = sorted(p.name for p in frames.iterdir())
+    assert names == [
+        "grid.pvd",
+        "grid_00000.vtk",
+        "grid_00001.vtk",
+        "grid_00002.vtk",
+        "notes.txt",
+        "particles.pvd",
+        "particles_00000.vtk",
+        "particles_00001.vtk",
+        "particles_00002.vtk",
+    ]
+    assert (frames / "notes.txt").read_text() == "MINE"
+    assert "particles_00003" not in (frames / "particles.pvd").read_text()
+
+
+def test_an_ensemble_of_a_cold_gas_runs_with_its_end_time_and_step_bound_given(capsys):
+    argv = ["ensemble", "noh", "cells=8", "--members", "2", "--vary", "u0=0.5:1", "--interpolator", "cpdi"]
+    line = usage(capsys, argv, "give --t-end T and --max-steps N")  # the cold gas has no sound speed
+    assert "the default --t-end and --max-steps come from the sound speed" in line
+    assert main(argv + ["--t-end", "0.05", "--max-steps", "400", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["ok"] == 2 and report["timing"] == dict(t_end=0.05, cfl=0.5, max_steps=400)
+    assert [r["t"] for r in report["results"]] == [0.05, 0.05]

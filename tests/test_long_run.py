@@ -414,3 +414,18 @@ def test_ctrl_c_is_held_back_while_a_chunk_is_recorded():
         time.sleep(0.05)
     assert held.pending
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_chunk_longer_than_the_run_is_cut_to_it(tmp_path):
+    """A chunk is never longer than the run (a masked chunk still computes every step of it)."""
+    scene = jm.GasExpansion(cells=4)
+    out = tmp_path / "run.npz"
+    sol = long_run.run(scene, jm.SPQ(), dt=1e-5, steps=10, chunk=10**7, out=out, progress=False)
+    assert long_run.load(out)[1]["chunk"] == 10
+    ref = jm.simulate(scene, jm.SPQ(), dt=1e-5, steps=10)
+    assert np.array_equal(sol.state.F, ref.state.F)
+    saveat = jm.SaveAt(every=4, fields=("x",))
+    long_run.run(
+        scene, jm.SPQ(), dt=1e-5, steps=10, chunk=400, saveat=saveat, out=out, overwrite=True, progress=False
+    )
+    assert long_run.load(out)[1]["chunk"] == 12  # a multiple of every, covering the 10 steps

@@ -104,7 +104,7 @@ def command(args) -> int:
             if dest in args.given:
                 raise UsageError(f"{option} goes with a run to an end time, not --dt and --steps")
         timing = dict(dt=args.dt, steps=args.steps)
-    else:  # the fastest member sets the bound: sound speeds at the ranges' corners
+    else:  # the fastest member sets the bound of the defaults: sound speeds at the ranges' corners
         try:
             check_positive("--cfl", args.cfl)
             if args.cfl > 1.0:  # the stability check's limit (simulate's cfl_limit)
@@ -117,20 +117,25 @@ def command(args) -> int:
                 check_int("--max-steps", args.max_steps, 1)
         except ValueError as e:
             raise UsageError(str(e)) from None
-        speeds = []
-        for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in bounds.items()]):
-            try:
-                speeds.append(float(type(scene)(**{**scene.parameter_values(), **dict(corner)}).wave_speed))
-            except ValueError as e:
-                raise UsageError(f"--vary: {e}") from None
-        c_min, c_max = min(speeds), max(speeds)
-        if not (math.isfinite(c_max) and c_min > 0):
-            raise UsageError(
-                f"--vary: the sound speed in the ranges must be finite and > 0, "
-                f"got {c_min:.6g} to {c_max:.6g}"
-            )
-        t_end = args.t_end if args.t_end is not None else 2.0 * float(scene.length) / c_min
-        max_steps = args.max_steps or int(3 * t_end * c_max / (args.cfl * float(scene.h))) + 100
+        if args.t_end is not None and args.max_steps is not None:
+            t_end, max_steps = args.t_end, args.max_steps
+        else:
+            speeds = []
+            for corner in itertools.product(*[[(k, lo), (k, hi)] for k, (lo, hi) in bounds.items()]):
+                try:
+                    values = {**scene.parameter_values(), **dict(corner)}
+                    speeds.append(float(type(scene)(**values).wave_speed))
+                except ValueError as e:
+                    raise UsageError(f"--vary: {e}") from None
+            c_min, c_max = min(speeds), max(speeds)
+            if not (math.isfinite(c_max) and c_min > 0):
+                raise UsageError(
+                    f"the default --t-end and --max-steps come from the sound speed, which in the ranges "
+                    f"of --vary must be finite and > 0, got {c_min:.6g} to {c_max:.6g}: give --t-end T "
+                    "and --max-steps N"
+                )
+            t_end = args.t_end if args.t_end is not None else 2.0 * float(scene.length) / c_min
+            max_steps = args.max_steps or int(3 * t_end * c_max / (args.cfl * float(scene.h))) + 100
         if max_steps > _MOST_STEPS:
             raise UsageError(
                 f"--t-end {t_end:.6g} at --cfl {args.cfl:g} needs about {max_steps:.3g} steps, more than "

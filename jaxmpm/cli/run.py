@@ -2,6 +2,7 @@
 
 import dataclasses
 import pathlib
+import re
 import time
 
 import equinox as eqx
@@ -82,7 +83,12 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--vtk", metavar="DIR", help="write ParaView files (particles, grid, .pvd series) to DIR")
-    p.add_argument("--vtk-every", type=int, metavar="K", help="with --vtk: a frame every K steps (steps/10)")
+    p.add_argument(
+        "--vtk-every",
+        type=int,
+        metavar="K",
+        help="with --vtk: a frame every K steps (steps/10; max-steps/10 with --t-end)",
+    )
     p.add_argument("--out", metavar="FILE", help="run in chunks and save the run to FILE (.npz)")
     p.add_argument(
         "--overwrite", action="store_true", help="with --out or --vtk: replace what is there (else refused)"
@@ -172,7 +178,8 @@ def command(args) -> int:
     if args.vtk is not None:
         if args.out is not None:
             raise UsageError("--vtk writes a run's saved frames; it does not combine with --out")
-        every = args.vtk_every if args.vtk_every is not None else max(1, (args.steps or args.max_steps) // 10)
+        steps = args.steps if args.steps is not None else args.max_steps  # the bound, with --t-end
+        every = args.vtk_every if args.vtk_every is not None else max(1, steps // 10)
         if every < 1:
             raise UsageError(f"--vtk-every must be an integer >= 1, got {every}")
         fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
@@ -200,6 +207,8 @@ def command(args) -> int:
                 failed = local_solution(e.solution)
                 _breakdown_json(args, scene, failed, viscosity)
                 raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
+            except OSError as e:  # e.g. the disk filled up while saving: a checkpoint before it is intact
+                raise UsageError(f"cannot write {args.out}: {e.strerror or e}") from None
         else:
             try:
                 sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
@@ -325,9 +334,27 @@ def _check_vtk_folder(folder, overwrite: bool) -> None:
 
 
 def _write_vtk(out_dir, scene, interp, settings, sol):
+    """Write the run's ParaView series to ``out_dir``, then remove the frames of an earlier series
+    there (``--overwrite``) that the new one does not replace, so that the folder holds one run.
+
+    Raises:
+        UsageError: a file cannot be written.
+    """
     keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
     model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
-    return jm.vtk.write_series(out_dir, model, sol)
+    try:
+        paths = jm.vtk.write_series(out_dir, model, sol)
+        written = {p.name for p in paths}
+        for old in pathlib.Path(out_dir).iterdir():
+            if old.name not in written and _FRAME.fullmatch(old.name):
+                old.unlink()
+    except OSError as e:
+        raise UsageError(f"--vtk {out_dir}: cannot write there ({e.strerror or e})") from None
+    return paths
+
+
+_FRAME = re.compile(r"(particles|grid)_\d{5,}\.vtk")
+"""The name of a frame that ``jm.vtk.write_series`` writes."""
 
 
 def report(

@@ -4,7 +4,7 @@ import importlib
 
 import jax
 
-from ._common import writable_folder
+from ._common import UsageError, writable_folder
 
 STUDIES = {
     "talk": "talk",
@@ -23,6 +23,13 @@ RELEASING = ("convergence", "stability")
 done. The command drops JAX's caches there: every compiled XLA CPU program holds about 265 memory
 maps, and past the process's limit (``vm.max_map_count``, 65,530 by default) compiling the next one
 crashes."""
+
+WITHOUT_FIGURES = ("convergence",)
+"""Studies that write tables only; every other one draws figures with matplotlib."""
+
+MARK = ".jaxmpm-study"
+"""The file in a study's ``--out`` folder that names the study which writes there. Running that study
+again replaces its own files; any other file in the folder is kept unless ``--overwrite``."""
 
 
 def add_parser(subparsers) -> None:
@@ -46,6 +53,11 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--small", action="store_true", help="a quick reduced version (for tests)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into an --out folder that holds files of something else (else refused)",
+    )
     p.set_defaults(handler=command)
 
 
@@ -59,10 +71,40 @@ def command(args) -> int:
         The exit status, 0.
 
     Raises:
-        UsageError: ``--out`` cannot be written (found before the study starts).
+        UsageError: ``--out`` cannot be written, or holds files that this study did not write (unless
+            ``--overwrite``); or the study draws figures and matplotlib is missing. All are found
+            before the study starts.
     """
-    writable_folder(args.out, "--out")
+    if args.name not in WITHOUT_FIGURES:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise UsageError(
+                f"study {args.name} draws figures with matplotlib, which is not installed: "
+                "pip install 'jaxmpm[figures]'"
+            ) from None
+    _claim(args.out, args.name, args.overwrite)
     study = importlib.import_module(f"jaxmpm.studies.{STUDIES[args.name]}")
     options = dict(release=jax.clear_caches) if args.name in RELEASING else {}
     study.main(out=args.out, small=args.small, **options)
     return 0
+
+
+def _claim(folder, name: str, overwrite: bool) -> None:
+    """Make ``folder`` the output folder of study ``name`` (``MARK``), once it is known that no file
+    there belongs to something else: the folder is new or empty, or was written by this study, or
+    ``overwrite`` is given."""
+    path = writable_folder(folder, "--out")
+    mark = path / MARK
+    owner = mark.read_text().strip() if mark.is_file() else None
+    held = sorted(p.name for p in path.iterdir() if p.name != MARK)
+    if held and owner != name and not overwrite:
+        whose = f"`jaxmpm study {owner}` wrote" if owner else f"`jaxmpm study {name}` did not write"
+        raise UsageError(
+            f"--out {folder} already holds files that {whose} ({held[0]}{', ...' if len(held) > 1 else ''}); "
+            "choose another folder, or pass --overwrite to write over them"
+        )
+    try:
+        mark.write_text(name + "\n")
+    except OSError as e:
+        raise UsageError(f"--out {folder}: cannot write there ({e.strerror or e})") from None
