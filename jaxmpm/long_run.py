@@ -55,6 +55,7 @@ import datetime
 import json
 import os
 import pathlib
+import secrets
 import signal
 import sys
 import tempfile
@@ -215,9 +216,9 @@ def _write_npz(path: pathlib.Path, arrays: dict) -> None:
     A crash at any point leaves either the previous file or the new one, never a broken one; a write
     that fails (a full disk) removes its temporary file and raises the ``OSError``.
     """
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")  # never a user's file
     try:
-        with open(tmp, "wb") as f:
+        with open(tmp, "xb") as f:  # made new: an existing file is never written over
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import secrets
 from collections.abc import Mapping
 
 import jax.numpy as jnp
@@ -95,7 +96,7 @@ def write_particles(
         _point_data(fields or {}, n),
     ]
     path = pathlib.Path(path)
-    path.write_bytes(b"".join(body))
+    _write(path, b"".join(body))
     return path
 
 
@@ -133,8 +134,21 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
         f"SPACING {' '.join(repr(s) for s in spacing)}\n"
     )
     path = pathlib.Path(path)
-    path.write_bytes(header.encode() + _point_data(fields, grid.n_nodes))
+    _write(path, header.encode() + _point_data(fields, grid.n_nodes))
     return path
+
+
+def _write(path: pathlib.Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole or not at all: a new temporary file beside it, then a rename, so
+    that a failed write (a full disk) leaves what was there."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    try:
+        with open(tmp, "xb") as f:
+            f.write(data)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    os.replace(tmp, path)
 
 
 def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
@@ -206,7 +220,9 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
 
     Saved times after a breakdown, or past ``t_end`` in a run to an end time, repeat the final
     state and are left out. The final state (after a breakdown, the last good one) is the last
-    frame, added when it falls between saves.
+    frame, added when it falls between saves. Files already in ``out_dir`` under the same names are
+    replaced (each file is written whole, then renamed into place); the model and the solution are
+    checked against each other before anything is written.
 
     Args:
         out_dir: the directory to write to (made if missing).
@@ -217,11 +233,18 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
         The paths written.
 
     Raises:
-        ValueError: the solution has no history, or its history lacks a field the files need.
+        ValueError: the solution has no history, or its history lacks a field the files need; it
+            holds a batch (an ensemble's); the model is not the solution's run; or ``out_dir`` is a
+            file.
     """
     if solution.history is None:
         raise ValueError(
             "write_series needs a solution with a history: simulate(..., saveat=SaveAt(every=k))"
+        )
+    if solution.state.x.ndim != 2:
+        raise ValueError(
+            f"write_series writes one run, and this solution holds a batch (x of shape "
+            f"{tuple(solution.state.x.shape)}): write each member (Ensemble.member(i))"
         )
     needed = ["x", "v", "F", "sigma"]
     needed += ["corners"] if model.interpolator.tracks_corners else []
@@ -231,8 +254,6 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     missing = [f for f in needed if f not in solution.history]
     if missing:
         raise ValueError(f"the saved history lacks {missing}: add them to SaveAt(fields=...)")
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     ts = np.asarray(solution.ts)
     t_last = float(solution.state.t)
     keep = []  # saved times up to the final state's, each once (a run to t_end, or a broken run,
@@ -245,6 +266,17 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     from ._step import setup
 
     prepared = setup(model)  # once for the series: the grid and the body do not change
+    X, X_model = np.asarray(solution.body.X), np.asarray(prepared.body.X)
+    if X.shape != X_model.shape or not np.allclose(X, X_model, rtol=1e-12, atol=0.0):
+        raise ValueError(
+            f"the model is not the solution's run: its body has {X_model.shape[0]} particles in "
+            f"{X_model.shape[1]}D, the solution's {X.shape[0]} in {X.shape[1]}D (or at other reference "
+            "positions)"
+        )
+    out = pathlib.Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out_dir {out_dir} is a file, not a folder")
+    out.mkdir(parents=True, exist_ok=True)
     paths, entries = [], {"particles": [], "grid": []}
     for frame, (t, state) in enumerate(frames):
         fields = particle_fields(state, solution.body)
@@ -258,7 +290,7 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
         lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
         lines += ["</Collection>", "</VTKFile>", ""]
         pvd = out / f"{kind}.pvd"
-        pvd.write_text("\n".join(lines))
+        _write(pvd, "\n".join(lines).encode())
         paths.append(pvd)
     return paths
 
