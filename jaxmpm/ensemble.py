@@ -28,7 +28,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
 from . import status as st_bits
-from ._simulate import Solution, checkpoint_block, prepare, run_scan
+from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .sensitivity import check_names
@@ -119,7 +119,9 @@ def _with(scene: AbstractScene, values: dict) -> AbstractScene:
 def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
     """Each varied value within what its parameter allows: ``dt``, ``t_end`` and ``cfl`` > 0, and a
     scene parameter's smallest and largest value each accepted by the scene's own checks (with the
-    other parameters at the base scene's values)."""
+    other parameters at the base scene's values). With two or more scene parameters varied, every
+    member's scene, all its varied values together, is also checked: a check can tie them (``P0 >
+    p_atm``), and a member that the scene refuses is named (about 1 ms a member)."""
     base = scene.parameter_values()
     for name, a in arrays.items():
         if name in RUN_NAMES:
@@ -133,6 +135,19 @@ def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
             except ValueError as e:
                 refused = f"vary[{name!r}] holds {value:g}, which {type(scene).__name__} refuses: {e}"
                 raise ValueError(refused) from None
+    joint = [name for name in arrays if name not in RUN_NAMES]
+    if len(joint) < 2:
+        return
+    rows = np.stack([np.asarray(arrays[name], dtype=float) for name in joint], axis=1)
+    _, first = np.unique(rows, axis=0, return_index=True)
+    for i in sorted(int(k) for k in first):
+        values = {name: float(rows[i, j]) for j, name in enumerate(joint)}
+        try:
+            type(scene)(**{**base, **values})
+        except ValueError as e:
+            given = ", ".join(f"{k}={v:g}" for k, v in values.items())
+            refused = f"member {i} of vary ({given}) is refused by {type(scene).__name__}: {e}"
+            raise ValueError(refused) from None
 
 
 def ensemble(
@@ -150,7 +165,8 @@ def ensemble(
         interpolator: the method.
         vary: continuous parameter names (scene parameters, ``dt``, or with ``t_end``: ``t_end`` and
             ``cfl``) to arrays of equal length: one value per member.
-        devices: the devices to shard the members over (default: every local device).
+        devices: the devices to shard the members over: a sequence of devices, or a count ``k`` (the
+            first ``k`` of ``jax.devices()``), as for ``simulate`` (default: every local device).
         **simulate_kwargs: as for ``simulate`` (``dt``, ``steps`` or ``t_end``, ``max_steps``, ...);
             ``throw`` is always ``False``: failures are read from the status.
 
@@ -162,6 +178,7 @@ def ensemble(
             that are not finite or that the parameter does not allow), bad run arguments, or more
             members than the device's memory holds (estimated before anything is allocated).
     """
+    devices = list(jax.local_devices() if devices is None else as_devices(devices))
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
     check_names(scene, [k for k in vary if k not in RUN_NAMES] or ["dt"])
@@ -184,7 +201,6 @@ def ensemble(
     _memory.check_run(model, steps, saveat, members=n)  # before the batch is laid out
     block = checkpoint_block(simulate_kwargs.get("checkpoint", False), steps)
 
-    devices = list(jax.local_devices() if devices is None else devices)
     k = len(devices)
     padded = -(-n // k) * k
     dtype = scene.h.dtype

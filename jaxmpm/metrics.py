@@ -202,6 +202,8 @@ def smooth_mask(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> Bo
 
 def _refuse_broken(state: State, allow_broken: bool, what: str) -> None:
     """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status)."""
+    if not isinstance(allow_broken, bool):
+        raise ValueError(f"allow_broken must be True or False, got {allow_broken!r}")
     status = state.status
     if allow_broken or isinstance(status, jax.core.Tracer) or np.ndim(status) != 0 or int(status) == 0:
         return
@@ -256,13 +258,8 @@ def errors(
             particle.
     """
     _refuse_broken(state, allow_broken, "errors() measures a finished run, and this state is")
-    _check_particles(state, body)
-    if where is not None and not isinstance(where, jax.core.Tracer):
-        if np.shape(where) != (body.n,) or np.asarray(where).dtype != np.bool_:
-            raise ValueError(
-                f"where must be one bool per particle, shape ({body.n},), got "
-                f"{np.asarray(where).dtype} of shape {np.shape(where)}"
-            )
+    _check_run(scene, state, body, "errors()")
+    _check_where(where, body)
     b = body.boundary
     has_interior = isinstance(b, jax.core.Tracer) or not bool(np.all(np.asarray(b)))
     ex = exact_fields(scene, body, state.t)
@@ -357,7 +354,11 @@ def _diagnostics(scene, v, F, e, body):
 
 
 def pressure_error(
-    scene: AbstractScene, state: State, body: Body, where: Bool[Array, " n"] | None = None
+    scene: AbstractScene,
+    state: State,
+    body: Body,
+    where: Bool[Array, " n"] | None = None,
+    allow_broken: bool = False,
 ) -> Array | None:
     """The RMS relative pressure error ``|p - p_exact| / |p_exact|`` against the scene's exact solution.
 
@@ -366,10 +367,17 @@ def pressure_error(
         state: the state.
         body: the reference configuration.
         where: one bool per particle (e.g. ``smooth_mask``), or ``None`` for all.
+        allow_broken: measure the state of a run that broke down too (as for ``errors``).
 
     Returns:
         The error, or ``None`` for a scene without an exact solution.
+
+    Raises:
+        ValueError: as for ``errors``.
     """
+    _refuse_broken(state, allow_broken, "pressure_error() measures a finished run, and this state is")
+    _check_run(scene, state, body, "pressure_error()")
+    _check_where(where, body)
     ex = exact_fields(scene, body, state.t)
     if ex is None:
         return None
@@ -459,6 +467,31 @@ def euler_errors(
 def _check_particles(state: State, body: Body) -> None:
     if state.x.shape[0] != body.n:
         raise ValueError(f"the state has {state.x.shape[0]} particles and the body {body.n}")
+
+
+def _check_run(scene: AbstractScene, state: State, body: Body, what: str) -> None:
+    """One run's state (not an ensemble's batch) of the scene's dimension and the body's particles."""
+    if state.x.ndim != 2:
+        raise ValueError(
+            f"{what} measures one run, and this state holds a batch (x of shape {tuple(state.x.shape)}): "
+            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
+        )
+    if state.x.shape[1] != scene.dim:
+        raise ValueError(f"the state is {state.x.shape[1]}D and the scene {scene.name} is {scene.dim}D")
+    _check_particles(state, body)
+
+
+def _check_where(where, body: Body) -> None:
+    """``where``: ``None``, a tracer, or one bool per particle that selects at least one particle."""
+    if where is None or isinstance(where, jax.core.Tracer):
+        return
+    if np.shape(where) != (body.n,) or np.asarray(where).dtype != np.bool_:
+        raise ValueError(
+            f"where must be one bool per particle, shape ({body.n},), got "
+            f"{np.asarray(where).dtype} of shape {np.shape(where)}"
+        )
+    if not np.any(np.asarray(where)):
+        raise ValueError("where selects no particle: there is nothing to measure")
 
 
 def _centre(centre, like):

@@ -24,7 +24,9 @@ from collections.abc import Callable, Sequence
 
 import equinox as eqx
 import jax
+import numpy as np
 
+from ._checks import check_positive
 from ._simulate import Solution, simulate
 from ._util import as_float
 from .interpolators import AbstractInterpolator
@@ -55,6 +57,8 @@ def check_names(scene: AbstractScene, names: Sequence[str]) -> None:
     Raises:
         ValueError: no name, or a name that is not a continuous parameter of ``scene`` (or ``dt``).
     """
+    if isinstance(names, str):
+        raise ValueError(f"names must be a sequence of parameter names, got the string {names!r}")
     allowed = continuous_parameters(scene)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
     for name in names:
@@ -97,6 +101,10 @@ def objective(
         ValueError: an unknown or structural name, before anything is traced.
     """
     check_names(scene, names)
+    if "dt" in names:  # a traced dt passes simulate's checks: check the value it starts from here
+        if np.ndim(dt) != 0:
+            raise ValueError(f"dt must be one number (the time step), got shape {np.shape(dt)}")
+        check_positive("dt", dt)
     scene_names = [n for n in names if n != "dt"]
     if isinstance(error, str) and error not in available_errors(scene):
         raise ValueError(f"error must be one of the finite errors of {scene.name}: {available_errors(scene)}")

@@ -318,3 +318,72 @@ def test_a_run_breaking_inside_the_users_jit_raises_and_says_how_to_see_the_fail
     with pytest.raises(RuntimeError, match="Inside a jit the step, particle and quantity cannot be named"):
         jax.block_until_ready(run(-2e5))
     assert np.isfinite(np.asarray(run(200.0))).all()  # a healthy run under the same jit
+
+
+def test_a_gradient_with_respect_to_dt_checks_dt_first():
+    scene = jm.GasExpansion(cells=2, ppc=1)
+    for dt, match in ((-1e-5, "dt must be > 0"), (0.0, "dt must be > 0"), (np.nan, "dt must be finite")):
+        with pytest.raises(ValueError, match=match):
+            jm.gradient(scene, jm.MPQ(), ["dt"], dt=dt, steps=2)
+    with pytest.raises(ValueError, match="dt must be one number"):
+        jm.gradient(scene, jm.MPQ(), ["dt"], dt=[1e-5, 2e-5], steps=2)
+
+
+def test_an_ensemble_checks_each_members_values_together():
+    slab = jm.GasSlab(cells=4, pad=40)
+    vary = {"P0": [3e5, 1.5e5], "p_atm": [1e5, 2e5]}  # each value alone is allowed; member 1 has P0 < p_atm
+    match = r"member 1 of vary \(P0=150000, p_atm=200000\) is refused by GasSlab"
+    with pytest.raises(ValueError, match=match):
+        jm.ensemble(slab, jm.CPDI(), vary=vary, dt=1e-6, steps=3)
+
+
+def test_the_metrics_refuse_what_they_cannot_measure():
+    scene = jm.GasExpansion(cells=2, ppc=1)
+    sol = jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=2)
+    with pytest.raises(ValueError, match="the state is 1D and the scene gas-expansion is 2D"):
+        jm.errors(jm.GasExpansion(cells=2, ppc=1, dim=2), sol.state, sol.body)
+    with pytest.raises(ValueError, match="where selects no particle"):
+        jm.errors(scene, sol.state, sol.body, where=jnp.zeros(sol.body.n, bool))
+    with pytest.raises(ValueError, match="where must be one bool per particle"):
+        jm.metrics.pressure_error(scene, sol.state, sol.body, where=jnp.ones(sol.body.n + 1, bool))
+    broken = jm.simulate(scene, jm.MPQ(), dt=1e-3, steps=3, throw=False)
+    assert broken.failure() is not None
+    with pytest.raises(ValueError, match="pressure_error\\(\\) measures a finished run"):
+        jm.metrics.pressure_error(scene, broken.state, broken.body)
+    assert jm.metrics.pressure_error(scene, broken.state, broken.body, allow_broken=True) is not None
+    ens = jm.ensemble(scene, jm.MPQ(), vary={"beta": [100.0, 200.0]}, dt=1e-5, steps=2)
+    with pytest.raises(ValueError, match="errors\\(\\) measures one run, and this state holds a batch"):
+        jm.errors(scene, ens.solution.state, ens.solution.body)
+
+
+@pytest.mark.parametrize(
+    "devices, match", [([], "devices"), (0, "devices must be a count from 1"), ("cpu", "devices")]
+)
+def test_an_ensemble_checks_its_devices_as_simulate_does(devices, match):
+    with pytest.raises(ValueError, match=match):
+        jm.ensemble(
+            jm.GasExpansion(cells=2), jm.SPQ(), vary={"beta": [1.0, 2.0]}, dt=1e-5, steps=2, devices=devices
+        )
+
+
+def test_an_ensemble_takes_a_device_count():
+    ens = jm.ensemble(
+        jm.GasExpansion(cells=2), jm.SPQ(), vary={"beta": [1.0, 2.0]}, dt=1e-5, steps=2, devices=1
+    )
+    assert ens.devices == 1 and list(np.asarray(ens.status)) == [0, 0]
+
+
+def test_write_series_checks_the_model_and_the_solution_before_writing(tmp_path):
+    scene = jm.GasExpansion(cells=2, ppc=1)
+    saveat = jm.SaveAt(every=1, fields=("x", "v", "F", "sigma"))
+    sol = jm.simulate(scene, jm.SPQ(), dt=1e-5, steps=2, saveat=saveat)
+    other = jm.Model(jm.GasExpansion(cells=3, ppc=1), jm.SPQ(), jm.FLIP())
+    with pytest.raises(ValueError, match="the model is not the solution's run: its body has 3 particles"):
+        jm.vtk.write_series(tmp_path / "frames", other, sol)
+    assert not (tmp_path / "frames").exists()
+    a_file = tmp_path / "a_file"
+    a_file.write_text("MINE")
+    with pytest.raises(ValueError, match="is a file, not a folder"):
+        jm.vtk.write_series(a_file, jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
+    paths = jm.vtk.write_series(tmp_path / "frames", jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
+    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == sorted(p.name for p in paths)

@@ -395,7 +395,7 @@ def report(
     # After a breakdown this is the last good state's report, and it says so (status, failure).
     err = jm.errors(scene, st, sol.body, where=where, allow_broken=True)
     if where is not None:
-        err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where)
+        err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where, allow_broken=True)
     diag = jm.diagnostics(scene, st, sol.body)
     params = scene.parameter_values()
     plate = ring = None
