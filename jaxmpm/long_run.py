@@ -55,7 +55,6 @@ import datetime
 import json
 import os
 import pathlib
-import secrets
 import signal
 import sys
 import tempfile
@@ -70,6 +69,7 @@ from jax.experimental import multihost_utils
 
 from . import status as st_bits
 from ._checks import check_int
+from ._files import write_whole
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
 from ._step import initial_state, place_particles, setup, shard_particles
 from ._util import host
@@ -216,16 +216,7 @@ def _write_npz(path: pathlib.Path, arrays: dict) -> None:
     A crash at any point leaves either the previous file or the new one, never a broken one; a write
     that fails (a full disk) removes its temporary file and raises the ``OSError``.
     """
-    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")  # never a user's file
-    try:
-        with open(tmp, "xb") as f:  # made new: an existing file is never written over
-            np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    os.replace(tmp, path)
+    write_whole(path, lambda f: np.savez(f, **arrays), durable=True)
     try:  # make the rename itself durable
         fd = os.open(path.parent, os.O_RDONLY)
         try:

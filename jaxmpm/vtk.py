@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import os
 import pathlib
-import secrets
 from collections.abc import Mapping
 
 import jax.numpy as jnp
 import numpy as np
 
+from ._files import write_whole
 from ._util import det
 
 
@@ -139,16 +139,8 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
 
 
 def _write(path: pathlib.Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` whole or not at all: a new temporary file beside it, then a rename, so
-    that a failed write (a full disk) leaves what was there."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
-    try:
-        with open(tmp, "xb") as f:
-            f.write(data)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    os.replace(tmp, path)
+    """Write ``data`` to ``path`` whole or not at all (``write_whole``)."""
+    write_whole(path, lambda f: f.write(data))
 
 
 def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
