@@ -5,8 +5,10 @@ Every check names the parameter and what is allowed. Values that are tracers (a 
 they were concrete, or they are the user's own transformation.
 """
 
+import inspect
 import math
 import reprlib
+from collections.abc import Callable, Iterable, Mapping
 
 import jax
 import jax.numpy as jnp
@@ -182,6 +184,78 @@ def check_int(name: str, value, minimum: int) -> None:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value}")
+
+
+def check_bool(name: str, value) -> None:
+    """Check a switch: ``True`` or ``False`` (a NumPy bool too), nothing else.
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value.
+
+    Raises:
+        ValueError: ``value`` is not a bool (a string such as ``"yes"``, a number, ``None``).
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {_brief(value)}")
+
+
+def check_keywords(
+    caller: str, given: Iterable[str], takes: Callable, refused: Mapping[str, str] | None = None
+) -> None:
+    """Refuse keywords that are passed on to another function's checks, naming the function the
+    user called (Python would name the inner one, or none).
+
+    Args:
+        caller: the public function, as the user wrote it (``"simulate_timed"``).
+        given: the keywords given.
+        takes: the function whose keyword-only parameters are the keywords allowed.
+        refused: keywords refused with a reason (say, those of ``simulate`` that a long run does not
+            take), to name in the message.
+
+    Raises:
+        ValueError: a keyword of ``refused``, with its reason.
+        TypeError: any other keyword that ``takes`` does not take, as Python names one, with the
+            keywords allowed.
+    """
+    allowed = [
+        name
+        for name, par in inspect.signature(takes).parameters.items()
+        if par.kind is inspect.Parameter.KEYWORD_ONLY
+    ]
+    for name in given:
+        if refused is not None and name in refused:
+            raise ValueError(f"{caller}() does not take {name}: {refused[name]}")
+        if name not in allowed:
+            raise TypeError(
+                f"{caller}() got an unexpected keyword argument {name!r}; it takes {', '.join(allowed)}"
+            )
+
+
+def python_int(value):
+    """A NumPy integer as the Python ``int`` it is, for a static field (hashed, and saved with a
+    run); anything else unchanged, for the field's check to name.
+
+    Args:
+        value: the value given.
+
+    Returns:
+        ``int(value)`` for a NumPy integer, else ``value``.
+    """
+    return int(value) if isinstance(value, np.integer) else value
+
+
+def python_bool(value):
+    """A NumPy bool as the Python ``bool`` it is, for a static field; anything else unchanged, for
+    the field's check to name.
+
+    Args:
+        value: the value given.
+
+    Returns:
+        ``bool(value)`` for a NumPy bool, else ``value``.
+    """
+    return bool(value) if isinstance(value, np.bool_) else value
 
 
 _REPR = reprlib.Repr()

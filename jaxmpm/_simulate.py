@@ -14,23 +14,26 @@ from jaxtyping import Array, Float, Int
 
 from . import _memory
 from . import status as st_bits
-from ._checks import check_int, check_positive, check_scalar, is_concrete
+from ._checks import check_int, check_keywords, check_positive, check_scalar, is_concrete
 from ._step import (
     Model,
     Setup,
+    check_cfl_limit,
     check_devices,
+    check_dt,
+    check_parts,
     check_structure,
     initial_state,
     setup,
     shard_particles,
     stable_dt,
-    step,
+    take_step,
 )
 from ._util import as_float, det, host
-from .interpolators import INTERPOLATORS, AbstractInterpolator
+from .interpolators import AbstractInterpolator
 from .particles import Body, State
 from .scenes import AbstractScene
-from .transfers import FLIP, TRANSFERS, AbstractTransfer
+from .transfers import FLIP, AbstractTransfer
 from .viscosity import ArtificialViscosity
 
 STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction", "e", "internal")
@@ -152,19 +155,7 @@ class SimulationError(RuntimeError):
 
 
 def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity):
-    if viscosity is not None and not isinstance(viscosity, ArtificialViscosity):
-        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {viscosity!r}")
-    if not isinstance(scene, AbstractScene):
-        raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
-    if not isinstance(interpolator, AbstractInterpolator):
-        raise ValueError(
-            f"interpolator must be a jaxmpm interpolator (INTERPOLATORS: {', '.join(INTERPOLATORS)}), "
-            f"got {interpolator!r}"
-        )
-    if not isinstance(transfer, AbstractTransfer):
-        raise ValueError(
-            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
-        )
+    check_parts(scene, interpolator, transfer, viscosity)
     for f in dataclasses.fields(scene):
         if f.metadata.get("converter") is as_float:
             check_scalar(f"{type(scene).__name__}.{f.name}", getattr(scene, f.name), _SEVERAL)
@@ -173,8 +164,7 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         check_positive("cfl", dt.cfl)
         check_int("max_steps", steps, 1)
     else:
-        check_positive("dt", dt)
-        check_scalar("dt", dt, _SEVERAL)
+        check_dt(dt, _SEVERAL)
         check_int("steps", steps, 0)
     if steps > MAX_STEP_COUNT:
         name = "max_steps" if isinstance(dt, ToEnd) else "steps"
@@ -185,9 +175,7 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
     check_structure(scene, int(artificial_cells))
     if not isinstance(checkpoint, bool):
         check_int("checkpoint", checkpoint, 1)
-    if cfl_limit is not None:
-        check_positive("cfl_limit", cfl_limit)
-        check_scalar("cfl_limit", cfl_limit)
+    check_cfl_limit(cfl_limit)
 
 
 def as_devices(devices) -> tuple[jax.Device, ...] | None:
@@ -296,7 +284,7 @@ def advance(
 
     def taken(state):
         if not isinstance(dt, ToEnd):
-            return step(model, setup, state, dt, limit)
+            return take_step(model, setup, state, dt, limit)
         remaining = dt.t_end - state.t
         active = remaining > 0
 
@@ -305,7 +293,7 @@ def advance(
             last = h_dt >= remaining
             dt_n = jnp.where(active & last, remaining, h_dt)  # past the end: a harmless step, discarded
             t_new = jnp.where(last, dt.t_end, st.t + dt_n)  # lands on t_end exactly
-            return step(model, setup, st, dt_n, limit, active=active, t_new=t_new)
+            return take_step(model, setup, st, dt_n, limit, active=active, t_new=t_new)
 
         # Past t_end (or after a breakdown) nothing changes: lax.cond skips the step's work, its
         # stable step included, so a generous max_steps costs little. (Under vmap the branches become
@@ -669,7 +657,13 @@ def simulate_timed(
     Returns:
         ``(solution, compile_s, wall_s)``: ``compile_s`` covers tracing, lowering and XLA
         compilation; ``wall_s`` the compiled run alone, to results ready on the host.
+
+    Raises:
+        ValueError: bad input, before anything is traced (as for ``simulate``).
+        TypeError: a keyword ``simulate`` does not take (the message lists those it takes).
+        SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
+    check_keywords("simulate_timed", kwargs, simulate)
     model, dt_arr, n, saveat = prepare(scene, interpolator, **kwargs)
     _check_throw(throw)
     t0 = time.perf_counter()

@@ -25,18 +25,18 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
-from ._checks import is_concrete
-from ._util import contract, det, materialise
+from ._checks import check_int, check_positive, check_scalar, is_concrete, is_real, python_int
+from ._util import as_float, contract, det, materialise
 from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
 from .explosives import ProgrammedBurn
 from .grid import Grid
-from .interpolators import AbstractInterpolator
+from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .interpolators._transfer import any_axis, gradient_forces, points_stencil, shared_corner_forces
 from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
 from .particles import Body, State
 from .regions import Layout, Region
 from .scenes import AbstractScene
-from .transfers import AbstractTransfer
+from .transfers import TRANSFERS, AbstractTransfer
 from .viscosity import ArtificialViscosity
 
 ORDERINGS = ("usl", "musl")
@@ -48,6 +48,76 @@ PRODUCTS_TENSION_BOUND = 1e-3
 """A burnt particle whose products' pressure is below ``-PRODUCTS_TENSION_BOUND rho0 D^2`` (about
 ``-4e-3 p_CJ`` for gamma = 3) is a breakdown (``status.PRODUCTS_TENSION``): detonation products hold no
 tension, so such a pressure means the products' EOS was taken outside its range."""
+
+
+def _static_float(value):
+    """A concrete real number (a NumPy scalar or a 0-d array too) as a Python ``float`` (a static
+    field); ``None``, a bool and anything else unchanged, for ``Model``'s checks to name."""
+    if (
+        value is None
+        or isinstance(value, (bool, np.bool_))
+        or not is_concrete(value)
+        or not is_real(value)
+        or np.ndim(value) != 0
+    ):
+        return value
+    return float(value)
+
+
+def check_parts(scene, interpolator, transfer, viscosity) -> None:
+    """Check what a run is made of (``simulate`` and ``Model`` both refuse these before tracing).
+
+    Args:
+        scene: must be a jaxmpm scene.
+        interpolator: must be a jaxmpm interpolator (``INTERPOLATORS``).
+        transfer: must be a jaxmpm transfer (``TRANSFERS``).
+        viscosity: must be ``None`` or an ``ArtificialViscosity``.
+
+    Raises:
+        ValueError: one of them is not what it must be (checked in the order viscosity, scene,
+            interpolator, transfer).
+    """
+    if viscosity is not None and not isinstance(viscosity, ArtificialViscosity):
+        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {viscosity!r}")
+    if not isinstance(scene, AbstractScene):
+        raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
+    if not isinstance(interpolator, AbstractInterpolator):
+        raise ValueError(
+            f"interpolator must be a jaxmpm interpolator (INTERPOLATORS: {', '.join(INTERPOLATORS)}), "
+            f"got {interpolator!r}"
+        )
+    if not isinstance(transfer, AbstractTransfer):
+        raise ValueError(
+            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
+        )
+
+
+def check_cfl_limit(cfl_limit) -> None:
+    """Check a run's ``cfl_limit``: ``None``, or one number > 0 (a tracer passes).
+
+    Args:
+        cfl_limit: the value given.
+
+    Raises:
+        ValueError: ``cfl_limit`` is not ``None`` and not one finite number > 0.
+    """
+    if cfl_limit is not None:
+        check_positive("cfl_limit", cfl_limit)
+        check_scalar("cfl_limit", cfl_limit)
+
+
+def check_dt(dt, batch: str = "") -> None:
+    """Check a fixed time step: one finite number > 0 (a tracer passes).
+
+    Args:
+        dt: the value given.
+        batch: appended to the message of a ``dt`` with a shape (how to run several values instead).
+
+    Raises:
+        ValueError: ``dt`` is not a real number, not finite, not > 0, or has a shape.
+    """
+    check_positive("dt", dt)
+    check_scalar("dt", dt, batch)
 
 
 class Model(eqx.Module):
@@ -84,19 +154,28 @@ class Model(eqx.Module):
             across the devices (an all-reduce), every device updates the whole grid, and each
             gathers for its own particles. The result equals the one-device run up to the order of
             the grid sums (round-off; ``shard_particles``).
+
+    Raises:
+        ValueError: an argument ``simulate`` would refuse, with its message (``check_parts``,
+            ``artificial_cells`` an integer >= 0, ``cfl_limit`` None or one number > 0), an unknown
+            ``ordering`` or ``volume_average``, or ``devices`` that are not distinct devices.
     """
 
     scene: AbstractScene
     interpolator: AbstractInterpolator
     transfer: AbstractTransfer
-    artificial_cells: int = eqx.field(static=True, default=0)
-    cfl_limit: float | None = eqx.field(static=True, default=1.0)
+    artificial_cells: int = eqx.field(static=True, default=0, converter=python_int)
+    cfl_limit: float | None = eqx.field(static=True, default=1.0, converter=_static_float)
     ordering: str = eqx.field(static=True, default="usl")
     viscosity: ArtificialViscosity | None = None
     volume_average: str | None = eqx.field(static=True, default=None)
     devices: tuple[jax.Device, ...] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
+        # the checks simulate makes of the same arguments, with the same messages
+        check_parts(self.scene, self.interpolator, self.transfer, self.viscosity)
+        check_int("artificial_cells", self.artificial_cells, 0)
+        check_cfl_limit(self.cfl_limit)
         if self.devices is not None:
             check_devices(self.devices)
         if self.ordering not in ORDERINGS:
@@ -542,7 +621,7 @@ def step(
     model: Model,
     setup: Setup,
     state: State,
-    dt: Float[Array, ""],
+    dt: Float[Array, ""] | float,
     limit: Int[Array, ""] | None = None,
     active: Bool[Array, ""] | None = None,
     t_new: Float[Array, ""] | None = None,
@@ -555,7 +634,8 @@ def step(
         model: the run.
         setup: what it derives once (``setup(model)``).
         state: the state to step from.
-        dt: the time step.
+        dt: the time step (> 0): a 0-d array, or a number (taken as ``simulate`` takes it, a 0-d
+            array of the default float dtype).
         limit: a step from ``state.step >= limit`` is not taken (masking the tail of a fixed-length
             chunk); ``None`` for no limit.
         active: where false, the step is not taken (the tail of a run to an end time); ``None``
@@ -564,6 +644,41 @@ def step(
 
     Returns:
         The new state, or on failure the old one with its status, failing step and particle set.
+
+    Raises:
+        ValueError: a concrete ``dt`` that ``simulate`` would refuse (not one finite number > 0),
+            with its message. A traced ``dt`` (inside ``jax.jit``, ``jax.grad``, ``jax.vmap``) is
+            not checked.
+    """
+    check_dt(dt, ": to step with several values, jax.vmap over step")
+    if not isinstance(dt, jax.Array):  # a Python or NumPy number, as simulate converts it
+        dt = as_float(dt)
+    return take_step(model, setup, state, dt, limit, active, t_new)
+
+
+def take_step(
+    model: Model,
+    setup: Setup,
+    state: State,
+    dt: Float[Array, ""],
+    limit: Int[Array, ""] | None = None,
+    active: Bool[Array, ""] | None = None,
+    t_new: Float[Array, ""] | None = None,
+) -> State:
+    """``step`` without the check of ``dt``: the step of the drivers, which check a fixed ``dt``
+    once before the loop, or compute it (a run to an end time).
+
+    Args:
+        model: the run.
+        setup: what it derives once (``setup(model)``).
+        state: the state to step from.
+        dt: the time step, an array.
+        limit: as for ``step``.
+        active: as for ``step``.
+        t_new: as for ``step``.
+
+    Returns:
+        As for ``step``.
     """
     new, bits, particle, healthy = _proposal(model, setup, state, dt, limit, active, t_new)
     ok = healthy & (bits == 0)

@@ -1,15 +1,16 @@
 """Long runs: chunks compiled once, a progress bar, crash-safe checkpoints, resume, saved outputs.
 
-``run`` takes the same arguments as ``simulate`` and drives the same scan (``advance``) in chunks of
-``chunk`` steps. Every chunk has the same length, and steps past the end are masked, so the chunk
-compiles once. Between chunks the host updates a progress bar and, every ``checkpoint_every``
-chunks, writes the whole run to ``out`` atomically. That covers the state (MPQ corners, APIC
-matrices and traction points included), status, step count, parameters, and the history so far. A
-run that breaks down stops at its last good step (the failing step is never taken), saves that,
-and says where. ``resume(path)`` continues a saved run with the same chunk boundaries and the same
-compiled chunk, so a resumed run equals an uninterrupted one bit for bit (a run spread over several
-devices, ``devices=``, continues on as many). With several processes the first writes the whole run
-and every process reads it.
+``run`` takes the arguments of ``simulate`` for fixed steps (``dt`` and ``steps``; not ``t_end``,
+``cfl``, ``max_steps``, ``checkpoint`` or ``volume_average``, see ``SIMULATE_ONLY``) and drives the
+same scan (``advance``) in chunks of ``chunk`` steps. Every chunk has the same length, and steps
+past the end are masked, so the chunk compiles once. Between chunks the host updates a progress bar
+and, every ``checkpoint_every`` chunks, writes the whole run to ``out`` atomically. That covers the
+state (MPQ corners, APIC matrices and traction points included), status, step count, parameters, and
+the history so far. A run that breaks down stops at its last good step (the failing step is never
+taken), saves that, and says where. ``resume(path)`` continues a saved run with the same chunk
+boundaries and the same compiled chunk, so a resumed run equals an uninterrupted one bit for bit (a
+run spread over several devices, ``devices=``, continues on as many). With several processes the
+first writes the whole run and every process reads it.
 
 The file format (NumPy ``.npz``; open it with ``numpy.load`` alone, no pickles):
 
@@ -60,6 +61,7 @@ import sys
 import tempfile
 import threading
 import time
+import typing
 
 import equinox as eqx
 import jax
@@ -68,7 +70,7 @@ import numpy as np
 from jax.experimental import multihost_utils
 
 from . import status as st_bits
-from ._checks import check_int
+from ._checks import check_bool, check_int, check_keywords
 from ._files import write_whole
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
 from ._step import initial_state, place_particles, setup, shard_particles
@@ -103,6 +105,20 @@ META_KEYS = (
     "step",
 )
 """The ``meta`` keys that ``load`` and ``resume`` need (a saved run has more, see above)."""
+SIMULATE_ONLY = {
+    "t_end": "a long run takes fixed steps (dt and steps); run to an end time with "
+    "jaxmpm.simulate(t_end=..., max_steps=...)",
+    "cfl": "a long run takes fixed steps (dt and steps); a CFL-limited run to an end time is "
+    "jaxmpm.simulate(t_end=..., cfl=..., max_steps=...)",
+    "max_steps": "a long run takes fixed steps (dt and steps); a run to an end time is "
+    "jaxmpm.simulate(t_end=..., max_steps=...)",
+    "checkpoint": "simulate's checkpoint is checkpointed reverse mode (for jax.grad), which a long run "
+    "does not take; a long run saves its state to a file with out=FILE and checkpoint_every=N",
+    "volume_average": "a saved run does not record it; run volume-averaged kinematics with "
+    "jaxmpm.simulate(volume_average=...)",
+}
+"""The arguments of ``simulate`` that a long run does not take, and why (the message of the
+``ValueError`` that ``run`` raises for each)."""
 _POLL_S = 0.02  # the longest sleep between two looks at a running chunk
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")  # a zip archive (an .npz), with members or empty
 
@@ -498,6 +514,15 @@ def _drive(
     return sol, compile_s, wall_s
 
 
+def _check_switches(progress, throw) -> None:
+    """Refuse a ``progress`` that is not ``None``, ``True`` or ``False``, and a ``throw`` that is not
+    a bool."""
+    if progress is not None and not isinstance(progress, (bool, np.bool_)):
+        raise ValueError(f"progress must be None, True or False, got {progress!r}")
+    check_bool("throw", throw)
+
+
+@typing.no_type_check  # validates every argument itself, raising ValueError (see run_timed)
 def run(scene: AbstractScene, interpolator: AbstractInterpolator, **kwargs) -> Solution:
     """``simulate`` in chunks, with progress, checkpoints and a saved result.
 
@@ -510,19 +535,24 @@ def run(scene: AbstractScene, interpolator: AbstractInterpolator, **kwargs) -> S
         The ``Solution``.
 
     Raises:
-        ValueError: bad input, before anything is traced (as for ``run_timed``).
+        ValueError: bad input, before anything is traced (as for ``run_timed``), and an argument of
+            ``simulate`` that a long run does not take (``t_end``, ``cfl``, ``max_steps``,
+            ``checkpoint``, ``volume_average``: ``SIMULATE_ONLY`` says why and what to use).
+        TypeError: a keyword that no run takes (the message lists those ``run`` takes).
         SimulationError: the run broke down (after saving it, with ``out``).
         Interrupted: Ctrl-C (after saving the last finished chunk, with ``out``).
     """
+    check_keywords("long_run.run", kwargs, run_timed, SIMULATE_ONLY)
     return run_timed(scene, interpolator, **kwargs)[0]
 
 
+@typing.no_type_check  # validates every argument itself, raising ValueError
 def run_timed(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
     *,
-    dt,
-    steps: int,
+    dt=None,
+    steps: int | None = None,
     chunk: int = 1000,
     transfer=None,
     artificial_cells: int = 0,
@@ -536,14 +566,15 @@ def run_timed(
     progress: bool | None = None,
     throw: bool = True,
     overwrite: bool = False,
+    **others,
 ) -> tuple[Solution, float, float]:
     """``simulate`` in chunks of ``chunk`` steps, with progress, checkpoints and a saved result.
 
     Args:
         scene: as for ``simulate``.
         interpolator: as for ``simulate``.
-        dt: as for ``simulate``.
-        steps: as for ``simulate``.
+        dt: as for ``simulate`` (required).
+        steps: as for ``simulate`` (required).
         transfer: as for ``simulate``.
         artificial_cells: as for ``simulate``.
         saveat: as for ``simulate``. With ``saveat.every``, ``chunk`` must be a multiple of it.
@@ -565,25 +596,39 @@ def run_timed(
         throw: raise ``SimulationError`` on breakdown (after saving); else return with the status.
         overwrite: replace ``out`` if it exists. Without it an existing ``out`` is an error, so that
             no saved run is lost (continue a saved run with ``resume`` instead).
+        **others: refused: an argument of ``simulate`` that a long run does not take
+            (``SIMULATE_ONLY``), or a keyword no run takes.
 
     Returns:
         ``(solution, compile_s, wall_s)``: the ``Solution`` (the same state as ``simulate`` gives),
         the time of the chunk's one compilation, and the time of everything after it.
 
     Raises:
-        ValueError: bad input, before anything is traced; also an ``out`` that exists (without
+        ValueError: bad input, before anything is traced (``dt`` or ``steps`` missing, ``progress``
+            not ``None``, ``True`` or ``False``, ``throw`` not a bool, an argument of ``simulate``
+            that a long run does not take, ...); also an ``out`` that exists (without
             ``overwrite``), is a folder, or lies in a folder that does not exist or is not writable.
+        TypeError: a keyword that no run takes (the message lists those it takes).
         SimulationError: the run broke down (after saving it, with ``out``).
         Interrupted: Ctrl-C (after saving the last finished chunk, with ``out``).
     """
+    check_keywords("long_run.run_timed", others, run_timed, SIMULATE_ONLY)
+    if dt is None or steps is None:
+        raise ValueError(
+            "a long run takes fixed steps: give dt (> 0) and steps (an integer >= 0); run to an end "
+            "time with jaxmpm.simulate(t_end=..., max_steps=...)"
+        )
+    _check_switches(progress, throw)
     check_int("chunk", chunk, 1)
+    chunk = int(chunk)  # a NumPy integer too: the chunk is static, and saved with the run
     if checkpoint_every is not None:
         check_int("checkpoint_every", checkpoint_every, 1)
+        checkpoint_every = int(checkpoint_every)
         if out is None:
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
     if not isinstance(overwrite, bool):
         raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
-    model, dt_arr, _, saveat = prepare(
+    model, dt_arr, steps, saveat = prepare(
         scene,
         interpolator,
         dt=dt,
@@ -609,7 +654,7 @@ def run_timed(
         params=params,
         interpolator=_interpolator_meta(interpolator),
         transfer=model.transfer.name,
-        artificial_cells=artificial_cells,
+        artificial_cells=model.artificial_cells,
         ordering=ordering,
         cfl_limit=cfl_limit,
         dt=float(dt_arr),
@@ -1053,6 +1098,7 @@ def _load(path: pathlib.Path, on_devices: bool = True):
     return rec.solution(state), meta, (model, dt_arr, saveat, state, rec)
 
 
+@typing.no_type_check  # validates every argument itself, raising ValueError (see resume_timed)
 def resume(
     path: str | os.PathLike,
     *,
@@ -1082,14 +1128,16 @@ def resume(
 
     Raises:
         FileNotFoundError: no file at ``path``.
-        ValueError: ``path`` is not a saved run this jaxmpm can continue (as for ``load``), or ``out``
-            cannot be written (as for ``run``'s ``out``).
+        ValueError: ``path`` is not a saved run this jaxmpm can continue (as for ``load``), ``out``
+            cannot be written (as for ``run``'s ``out``), or ``progress`` or ``throw`` is not what
+            ``run`` allows.
         SimulationError: the run broke down (now or before it was saved).
         Interrupted: Ctrl-C (after saving the last finished chunk to ``out``).
     """
     return resume_timed(path, out=out, progress=progress, throw=throw, overwrite=overwrite)[0]
 
 
+@typing.no_type_check  # validates every argument itself, raising ValueError
 def resume_timed(
     path: str | os.PathLike,
     *,
@@ -1118,6 +1166,7 @@ def resume_timed(
     """
     if not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"path must be a file path (a str or os.PathLike), got {path!r}")
+    _check_switches(progress, throw)
     if not isinstance(overwrite, bool):
         raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
     path = pathlib.Path(path)

@@ -11,7 +11,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Int
 from ._util import adjugate, corner_signs, det
 from .materials import DEVIATORIC_KEYS, AbstractEOS
 from .particles import Body, State, parallelogram_corners
-from .scenes import AbstractScene
+from .scenes import SCENES, AbstractScene
 
 EXACT_ERRORS = (
     "F_max_rel",
@@ -40,7 +40,11 @@ def available_errors(scene: AbstractScene) -> tuple[str, ...]:
 
     Returns:
         The names of its finite errors.
+
+    Raises:
+        ValueError: ``scene`` is not a scene.
     """
+    _check_scene(scene)
     if scene.exact is None:
         return ("separation_max",)
     return ("separation_max",) + tuple(k for k in EXACT_ERRORS if scene.cells > 2 or k not in INTERIOR_ERRORS)
@@ -57,7 +61,11 @@ def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> d
     Returns:
         ``dict(x, v, F, sigma)`` at every particle's ``X`` at time ``t``, each with a leading
         particle axis; ``None`` for a scene with no exact solution.
+
+    Raises:
+        ValueError: ``scene`` is not a scene.
     """
+    _check_scene(scene)
     if scene.exact is None:
         return None
     return _exact_fields(scene, body.X, t)
@@ -125,23 +133,28 @@ def _corner_gap_sq(corners, body):
     return jax.ops.segment_max(dev, ids, num_segments=nc)
 
 
-def separation(state: State, body: Body) -> Float[Array, " n_minus_1"]:
+def separation(state: State, body: Body, allow_broken: bool = False) -> Float[Array, " n_minus_1"]:
     """Domain separation of neighbours, ``(x_{p+1} - x_p - (F_{p+1} + F_p) r0) / (2 r0)``.
 
     The violation of the consistency condition between neighbours ``x_{p+1} - x_p = (F_{p+1} + F_p)
     r0`` (Bonifasi-Lista, Brannon & Wiskin 2013): zero when neighbouring domains touch; positive for
     a gap, negative for an overlap. 1D; in 2D and 3D use ``corner_gap``.
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         The separation of each pair of neighbours.
 
     Raises:
-        ValueError: the run is not 1D.
+        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``), the run
+            is not 1D, or the state and the body have different particle counts.
     """
+    _refuse_broken(state, allow_broken, "separation() measures a finished run, and this state is")
     if state.x.shape[1] != 1:
         raise ValueError("separation is the 1D diagnostic; in 2D and 3D use corner_gap")
     _check_particles(state, body)
@@ -194,13 +207,17 @@ def smooth_mask(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> Bo
 
     Returns:
         One bool per particle, or ``None`` for a scene smooth everywhere.
+
+    Raises:
+        ValueError: ``scene`` is not a scene.
     """
+    _check_scene(scene)
     if scene.smooth is None:
         return None
     return jax.vmap(scene.smooth, in_axes=(0, None))(body.X, t)
 
 
-def _refuse_broken(state: State, allow_broken: bool, what: str) -> None:
+def _refuse_broken(state: State, allow_broken, what: str) -> None:  # allow_broken: checked here
     """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status)."""
     if not isinstance(allow_broken, bool):
         raise ValueError(f"allow_broken must be True or False, got {allow_broken!r}")
@@ -253,10 +270,11 @@ def errors(
         Error name (``"separation_max"`` and ``EXACT_ERRORS``) to value or ``None``.
 
     Raises:
-        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``), the
-            state and the body have different particle counts, or ``where`` is not one bool per
-            particle.
+        ValueError: ``scene`` is not a scene, the state is of a run that broke down (and
+            ``allow_broken`` is ``False``), the state and the body have different particle counts, or
+            ``where`` is not one bool per particle.
     """
+    _check_scene(scene)
     _refuse_broken(state, allow_broken, "errors() measures a finished run, and this state is")
     _check_run(scene, state, body, "errors()")
     _check_where(where, body)
@@ -305,7 +323,9 @@ def _momentum(p):
     return total[0] if p.shape[1] == 1 else total
 
 
-def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Array]:
+def diagnostics(
+    scene: AbstractScene, state: State, body: Body, allow_broken: bool = False
+) -> dict[str, Array]:
     """Total mass, momentum, kinetic, internal and total energy of the real particles.
 
     ``momentum`` is a number in 1D and a vector of ``dim`` components in 2D and 3D.
@@ -313,17 +333,23 @@ def diagnostics(scene: AbstractScene, state: State, body: Body) -> dict[str, Arr
     Internal energy is ``sum_p V0_p W(F_p)`` with the material's stored energy ``W``, and
     ``sum_p m_p e_p`` on the particles of a material with an energy equation (``AbstractEOS``).
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         scene: the scene (its material).
         state: the state.
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``dict(mass, momentum, energy_kinetic, energy_internal, energy)``.
 
     Raises:
-        ValueError: the state and the body have different particle counts.
+        ValueError: ``scene`` is not a scene, the state is of a run that broke down (and
+            ``allow_broken`` is ``False``), or the state and the body have different particle counts.
     """
+    _check_scene(scene)
+    _refuse_broken(state, allow_broken, "diagnostics() measures a finished run, and this state is")
     _check_particles(state, body)
     return _diagnostics(scene, state.v, state.F, state.e, body)
 
@@ -375,6 +401,7 @@ def pressure_error(
     Raises:
         ValueError: as for ``errors``.
     """
+    _check_scene(scene)
     _refuse_broken(state, allow_broken, "pressure_error() measures a finished run, and this state is")
     _check_run(scene, state, body, "pressure_error()")
     _check_where(where, body)
@@ -387,16 +414,23 @@ def pressure_error(
     return _max_rms(sq, where)[1]
 
 
-def density(state: State, body: Body) -> Float[Array, " n"]:
+def density(state: State, body: Body, allow_broken: bool = False) -> Float[Array, " n"]:
     """Each particle's current density ``m / (V0 det F)``.
+
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
 
     Args:
         state: the state.
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``rho``.
+
+    Raises:
+        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
     """
+    _refuse_broken(state, allow_broken, "density() measures a finished run, and this state is")
     return body.m / (body.V0 * jax.vmap(jnp.linalg.det)(state.F))
 
 
@@ -446,15 +480,17 @@ def euler_errors(
         run without an energy equation.
 
     Raises:
-        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
+        ValueError: ``scene`` is not a scene, or the state is of a run that broke down (and
+            ``allow_broken`` is ``False``).
     """
+    _check_scene(scene)
     _refuse_broken(state, allow_broken, "euler_errors() measures a finished run, and this state is")
     _check_particles(state, body)
     if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
         return None
     ex = scene.solution(state.x[:, 0], state.t)
     V = body.V0 * state.F[:, 0, 0]
-    num = dict(rho=density(state, body), u=state.v[:, 0], p=pressure(state), e=state.e)
+    num = dict(rho=density(state, body, allow_broken), u=state.v[:, 0], p=pressure(state), e=state.e)
     return {f"{k}_L1": jnp.sum(jnp.abs(num[k] - ex[k]) * V) for k in EULER_FIELDS}
 
 
@@ -462,6 +498,17 @@ def euler_errors(
 # about a centre ``c`` (``R = |X - c|``) has a symmetric ``F`` (no rotation), a radial velocity that
 # depends on ``R`` only, and unfolded particle domains. The measures below are how far a run is
 # from each.
+
+
+def _check_scene(scene) -> None:
+    """``scene`` is a scene (an ``AbstractScene``), not ``None``, a scene's name or anything else."""
+    if not isinstance(scene, AbstractScene):
+        got = repr(scene) if scene is None or isinstance(scene, (str, int, float)) else type(scene).__name__
+        if isinstance(scene, str) and scene in SCENES:
+            got += f" (a scene's name: jm.SCENES[{scene!r}]() is the scene)"
+        raise ValueError(
+            f"scene must be a jaxmpm scene (an AbstractScene, such as jm.GasExpansion()), got {got}"
+        )
 
 
 def _check_particles(state: State, body: Body) -> None:

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 import jax.numpy as jnp
 import numpy as np
 
+from ._checks import check_bool
 from ._files import write_whole
 from ._util import det
 
@@ -65,7 +66,7 @@ def _point_data(fields: Mapping[str, np.ndarray], n: int) -> bytes:
 
 
 def write_particles(
-    path: str | os.PathLike, x, fields: Mapping[str, np.ndarray] | None = None
+    path: str | os.PathLike, x, fields: Mapping[str, np.ndarray] | None = None, *, overwrite: bool = False
 ) -> pathlib.Path:
     """Write particles as a legacy VTK ``UNSTRUCTURED_GRID`` of vertices.
 
@@ -74,13 +75,17 @@ def write_particles(
         x: positions, ``(n, dim)``.
         fields: point data: arrays of shape ``(n,)`` (scalars), ``(n, 3)`` (vectors) or ``(n, 9)``
             (3x3 tensors, row-major).
+        overwrite: replace a file already at ``path`` (else it is refused).
 
     Returns:
         ``path``.
 
     Raises:
-        ValueError: a field of the wrong length or shape.
+        ValueError: a field of the wrong length or shape, or ``overwrite`` is not a bool.
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
     """
+    path = pathlib.Path(path)
+    _refuse_existing([path], overwrite)
     x = _pad_vectors(np.asarray(x, dtype=float))
     n = x.shape[0]
     cells = np.stack([np.ones(n, dtype=np.int64), np.arange(n)], axis=1)
@@ -95,25 +100,30 @@ def write_particles(
         b"\n",
         _point_data(fields or {}, n),
     ]
-    path = pathlib.Path(path)
     _write(path, b"".join(body))
     return path
 
 
-def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) -> pathlib.Path:
+def write_grid(
+    path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray], *, overwrite: bool = False
+) -> pathlib.Path:
     """Write node fields of a grid as legacy VTK ``STRUCTURED_POINTS``.
 
     Args:
         path: the file to write.
         grid: the ``jm.Grid``.
         fields: as for ``write_particles``, one value per node (in jaxmpm's flat order).
+        overwrite: replace a file already at ``path`` (else it is refused).
 
     Returns:
         ``path``.
 
     Raises:
-        ValueError: a field of the wrong length or shape.
+        ValueError: a field of the wrong length or shape, or ``overwrite`` is not a bool.
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
     """
+    path = pathlib.Path(path)
+    _refuse_existing([path], overwrite)
     dim = grid.dim
     shape = list(grid.axes) + [1] * (3 - dim)
     origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
@@ -133,9 +143,19 @@ def write_grid(path: str | os.PathLike, grid, fields: Mapping[str, np.ndarray]) 
         f"ORIGIN {' '.join(repr(o) for o in origin)}\n"
         f"SPACING {' '.join(repr(s) for s in spacing)}\n"
     )
-    path = pathlib.Path(path)
     _write(path, header.encode() + _point_data(fields, grid.n_nodes))
     return path
+
+
+def _refuse_existing(paths: list[pathlib.Path], overwrite) -> None:  # overwrite: checked here
+    """Refuse, before anything is written, to replace a file already at one of ``paths`` unless
+    ``overwrite``."""
+    check_bool("overwrite", overwrite)
+    if overwrite:
+        return
+    for path in paths:
+        if os.path.lexists(path):
+            raise FileExistsError(f"{path} already exists: pass overwrite=True to replace it")
 
 
 def _write(path: pathlib.Path, data: bytes) -> None:
@@ -205,30 +225,36 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
     return out
 
 
-def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Path]:
+def write_series(
+    out_dir: str | os.PathLike, model, solution, *, overwrite: bool = False
+) -> list[pathlib.Path]:
     """One particle file and one grid file per saved time of ``solution`` (run with a ``SaveAt`` that
     keeps ``x``, ``v``, ``F`` and ``sigma``, and ``corners`` for MPQ, ``C`` for APIC), plus
     ``particles.pvd`` and ``grid.pvd``, the collections ParaView opens as time series.
 
     Saved times after a breakdown, or past ``t_end`` in a run to an end time, repeat the final
     state and are left out. The final state (after a breakdown, the last good one) is the last
-    frame, added when it falls between saves. Files already in ``out_dir`` under the same names are
-    replaced (each file is written whole, then renamed into place); the model and the solution are
-    checked against each other before anything is written.
+    frame, added when it falls between saves. A file already in ``out_dir`` under one of the names
+    written is refused unless ``overwrite``, and replaced with it (each file is written whole, then
+    renamed into place); files of other names are left as they are. The model, the solution and the
+    files already there are checked before anything is written.
 
     Args:
         out_dir: the directory to write to (made if missing).
         model: the run (a ``jm.Model``).
         solution: its ``Solution``.
+        overwrite: replace the files already in ``out_dir`` under the names written (else refused).
 
     Returns:
         The paths written.
 
     Raises:
         ValueError: the solution has no history, or its history lacks a field the files need; it
-            holds a batch (an ensemble's); the model is not the solution's run; or ``out_dir`` is a
-            file.
+            holds a batch (an ensemble's); the model is not the solution's run; ``out_dir`` is a
+            file; or ``overwrite`` is not a bool.
+        FileExistsError: a file to write is already in ``out_dir`` and ``overwrite`` is ``False``.
     """
+    check_bool("overwrite", overwrite)
     if solution.history is None:
         raise ValueError(
             "write_series needs a solution with a history: simulate(..., saveat=SaveAt(every=k))"
@@ -268,12 +294,19 @@ def write_series(out_dir: str | os.PathLike, model, solution) -> list[pathlib.Pa
     out = pathlib.Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out_dir {out_dir} is a file, not a folder")
+    names = [f"{kind}_{frame:05d}.vtk" for frame in range(len(frames)) for kind in ("particles", "grid")]
+    _refuse_existing([out / name for name in names + ["particles.pvd", "grid.pvd"]], overwrite)
     out.mkdir(parents=True, exist_ok=True)
     paths, entries = [], {"particles": [], "grid": []}
     for frame, (t, state) in enumerate(frames):
         fields = particle_fields(state, solution.body)
-        p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields)
-        g = write_grid(out / f"grid_{frame:05d}.vtk", prepared.grid, nodal_fields(model, state, prepared))
+        p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields, overwrite=overwrite)
+        g = write_grid(
+            out / f"grid_{frame:05d}.vtk",
+            prepared.grid,
+            nodal_fields(model, state, prepared),
+            overwrite=overwrite,
+        )
         paths += [p, g]
         entries["particles"].append((t, p.name))
         entries["grid"].append((t, g.name))

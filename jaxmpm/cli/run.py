@@ -215,7 +215,7 @@ def command(args) -> int:
             except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
                 failed = local_solution(e.solution)
                 if args.vtk is not None and first:
-                    _write_vtk(args.vtk, scene, interp, settings, failed)
+                    _write_vtk(args.vtk, scene, interp, settings, failed, args.overwrite)
                 _breakdown_json(args, scene, failed, viscosity)
                 raise Breakdown(failed, dt=args.dt) from None
     except ValueError as e:
@@ -234,7 +234,7 @@ def command(args) -> int:
     if settings["devices"] is not None:
         run["devices"] = settings["devices"]
     if args.vtk is not None and first:
-        paths = _write_vtk(args.vtk, scene, interp, settings, sol)
+        paths = _write_vtk(args.vtk, scene, interp, settings, sol, args.overwrite)
         run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
     return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
 
@@ -333,17 +333,18 @@ def _check_vtk_folder(folder, overwrite: bool) -> None:
         )
 
 
-def _write_vtk(out_dir, scene, interp, settings, sol):
+def _write_vtk(out_dir, scene, interp, settings, sol, overwrite: bool):
     """Write the run's ParaView series to ``out_dir``, then remove the frames of an earlier series
     there (``--overwrite``) that the new one does not replace, so that the folder holds one run.
 
     Raises:
-        UsageError: a file cannot be written.
+        UsageError: a file cannot be written, or (without ``overwrite``) one to write is there
+            already (put there during the run: ``_check_vtk_folder`` found none before it).
     """
     keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
     model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
     try:
-        paths = jm.vtk.write_series(out_dir, model, sol)
+        paths = jm.vtk.write_series(out_dir, model, sol, overwrite=overwrite)
         written = {p.name for p in paths}
         for old in pathlib.Path(out_dir).iterdir():
             if old.name not in written and _FRAME.fullmatch(old.name):
@@ -396,7 +397,7 @@ def report(
     err = jm.errors(scene, st, sol.body, where=where, allow_broken=True)
     if where is not None:
         err["p_rms_rel"] = jm.metrics.pressure_error(scene, st, sol.body, where, allow_broken=True)
-    diag = jm.diagnostics(scene, st, sol.body)
+    diag = jm.diagnostics(scene, st, sol.body, allow_broken=True)
     params = scene.parameter_values()
     plate = ring = None
     if isinstance(scene, (jm.Detonation, jm.scenes.AbstractGurney)):
@@ -424,7 +425,7 @@ def report(
             X=floats(sol.body.X), x=floats(st.x), v=floats(st.v), F=floats(st.F), sigma=floats(st.sigma)
         )
     if scene.regions is not None:  # a body of regions: each particle's region and thermodynamic state
-        particles["rho"] = floats(jm.metrics.density(st, sol.body))
+        particles["rho"] = floats(jm.metrics.density(st, sol.body, allow_broken=True))
         particles["p"] = floats(jm.metrics.pressure(st))
         if st.e is not None:
             particles["e"] = floats(st.e)

@@ -8,6 +8,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._checks import check_bool, check_int, python_bool, python_int
 from ..shapes import hat, hat_integral
 from ._base import AbstractInterpolator, Stencil
 from ._transfer import multiplicative_F_update, tensor
@@ -32,8 +33,8 @@ class GIMP(AbstractInterpolator):
         max_span: the longest domain, in cells, that the stencil covers (static).
     """
 
-    contiguous: bool = eqx.field(static=True, default=False)
-    max_span: int = eqx.field(static=True, default=1)
+    contiguous: bool = eqx.field(static=True, default=False, converter=python_bool)
+    max_span: int = eqx.field(static=True, default=1, converter=python_int)
     tracks_corners: ClassVar[bool] = False
 
     @property
@@ -42,8 +43,14 @@ class GIMP(AbstractInterpolator):
         return self.max_span + 2
 
     def __check_init__(self):
-        if isinstance(self.max_span, bool) or not isinstance(self.max_span, int) or self.max_span < 1:
-            raise ValueError(f"max_span must be an integer >= 1, got {self.max_span!r}")
+        """Check the options.
+
+        Raises:
+            ValueError: ``contiguous`` is not ``True`` or ``False``, or ``max_span`` is not an
+                integer >= 1 (a NumPy integer is one).
+        """
+        check_bool("contiguous", self.contiguous)
+        check_int("max_span", self.max_span, 1)
 
     @property
     def name(self) -> str:

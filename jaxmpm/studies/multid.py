@@ -140,7 +140,8 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
                 mid = dict(t=float(sol.ts[k]), corners=np.asarray(own).tolist())
             gaps.append(float(np.max(jm.corner_gap(own, body))))
             implied.append(float(np.max(jm.corner_gap(parallelograms, body))))
-        d = jm.diagnostics(scene, sol.state, body)
+        # a broken run's last good state, reported beside its failure (``steps_taken``, ``failure``)
+        d = jm.diagnostics(scene, sol.state, body, allow_broken=True)
         fail = sol.failure()
         out[name] = dict(
             t=[float(t) for t in sol.ts],
