@@ -628,7 +628,10 @@ def step(
 ) -> State:
     """One USL (or MUSL) step (see the module's docstring).
 
-    A step that fails a check is not taken: the state stays, its status records it.
+    A step that fails a check is not taken: the state stays, its status records it. The step is
+    compiled (``equinox.filter_jit``) once per model structure and array shapes, so a Python loop of
+    steps runs compiled code; inside the caller's ``jax.jit``, ``grad`` or ``vmap`` it is part of the
+    caller's program.
 
     Args:
         model: the run.
@@ -653,7 +656,7 @@ def step(
     check_dt(dt, ": to step with several values, jax.vmap over step")
     if not isinstance(dt, jax.Array):  # a Python or NumPy number, as simulate converts it
         dt = as_float(dt)
-    return take_step(model, setup, state, dt, limit, active, t_new)
+    return _compiled_step(model, setup, state, dt, limit, active, t_new)
 
 
 def take_step(
@@ -700,6 +703,11 @@ def take_step(
             jnp.where(first, particle, state.fail_particle),
         ),
     )
+
+
+_compiled_step = eqx.filter_jit(take_step)
+"""``take_step`` compiled: the program ``step`` runs (op by op, one step would dispatch hundreds of
+small programs, each compiled on first use)."""
 
 
 @eqx.filter_custom_jvp
