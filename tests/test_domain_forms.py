@@ -2,6 +2,9 @@
 through its factors (per corner, and for tracked corners per shared corner), equals the per-entry
 contraction with ``dphi`` to round-off; in 1D the stencil has no factors."""
 
+import functools
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -31,9 +34,13 @@ def distorted(interpolator, dim, seed=0):
     a = rng.normal(0.0, 1e5, (n, dim, dim))
     sigma = jnp.asarray(a + np.swapaxes(a, 1, 2))
     V = body.V0 * jnp.linalg.det(F)
+    return grid, body, stencil(interpolator, grid, body, x, F, corners), sigma, V, corners
+
+
+@jax.jit  # one program, not op by op
+def stencil(interpolator, grid, body, x, F, corners):
     particle_corners = None if corners is None else body.particle_corners(corners)
-    stencil = interpolator.stencil(grid, body.r0, x, F, particle_corners)
-    return grid, body, stencil, sigma, V, corners
+    return interpolator.stencil(grid, body.r0, x, F, particle_corners)
 
 
 def assert_close(actual, expected):
@@ -42,23 +49,32 @@ def assert_close(actual, expected):
     np.testing.assert_allclose(actual, expected, rtol=0, atol=RTOL * scale)
 
 
+@functools.partial(jax.jit, static_argnames="tracks_corners")  # one program a case, not op by op
+def factored_and_per_entry(grid, body, st, sigma, V, corners, tracks_corners):
+    """Each form through the factors beside the per-entry contraction with ``dphi`` it must equal."""
+    n, c, k = st.S_c.shape
+    dim = grid.dim
+    assert c == 2**dim and st.g_c.shape == (n, c, dim)  # (the shapes are known while tracing)
+    per_entry = grid.scatter(st.gidx, contract("nab,nkb->nka", sigma, st.dw) * V[:, None, None])
+    values = grid.gather(st.gidx, jnp.asarray(np.random.default_rng(3).normal(0, 1.0, (grid.n_nodes, dim))))
+    out = dict(
+        # the factors reproduce dphi entry by entry
+        dphi=((st.S_c[..., None] * st.g_c[:, :, None, :]).reshape(st.dw.shape), st.dw),
+        forces=(grid.scatter(st.gidx, gradient_forces(st, sigma, V)), per_entry),
+        outer=(gradient_outer(st, values), contract("nka,nkb->nab", values, st.dw)),
+    )
+    if tracks_corners:  # shared corners: Q_c gathered per corner, then the corner's hat stencil
+        out["shared"] = (shared_corner_forces(grid, st, sigma, V, corners, body.corner_ids), per_entry)
+    return out
+
+
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("interpolator", [jm.CPDI(), jm.CPDI2(), jm.MPQ()], ids=["cpdi", "cpdi2", "mpq"])
 def test_factored_forces_and_gradient_equal_the_contraction_with_dphi(interpolator, dim):
-    grid, body, st, sigma, V, corners = distorted(interpolator, dim)
-    n, c, k = st.S_c.shape
-    assert c == 2**dim and st.g_c.shape == (n, c, dim)
-    # The factors reproduce dphi entry by entry.
-    assert_close((st.S_c[..., None] * st.g_c[:, :, None, :]).reshape(st.dw.shape), st.dw)
-
-    per_entry = grid.scatter(st.gidx, contract("nab,nkb->nka", sigma, st.dw) * V[:, None, None])
-    assert_close(grid.scatter(st.gidx, gradient_forces(st, sigma, V)), per_entry)
-
-    values = grid.gather(st.gidx, jnp.asarray(np.random.default_rng(3).normal(0, 1.0, (grid.n_nodes, dim))))
-    assert_close(gradient_outer(st, values), contract("nka,nkb->nab", values, st.dw))
-
-    if interpolator.tracks_corners:  # shared corners: Q_c gathered per corner, then the corner's hat stencil
-        assert_close(shared_corner_forces(grid, st, sigma, V, corners, body.corner_ids), per_entry)
+    forms = factored_and_per_entry(*distorted(interpolator, dim), interpolator.tracks_corners)
+    assert set(forms) == {"dphi", "forces", "outer"} | ({"shared"} if interpolator.tracks_corners else set())
+    for actual, expected in forms.values():
+        assert_close(actual, expected)
 
 
 @pytest.mark.parametrize("interpolator", [jm.CPDI(), jm.CPDI2(), jm.MPQ()], ids=["cpdi", "cpdi2", "mpq"])

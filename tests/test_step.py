@@ -1,5 +1,6 @@
 """A hand-computed step, and the artificial-cell extrapolation."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -37,7 +38,7 @@ def test_hand_computed_spq_step():
         fail_step=state.fail_step,
         fail_particle=state.fail_particle,
     )
-    new = jm.step(model, s, state, jnp.asarray(0.1))
+    new = jax.jit(jm.step)(model, s, state, jnp.asarray(0.1))  # one program, not op by op
     np.testing.assert_allclose(new.v[:, 0], [-0.012, -0.012], rtol=1e-14)
     np.testing.assert_allclose(new.x[:, 0], [0.5 - 0.0012, 1.5 - 0.0012], rtol=1e-15)
     np.testing.assert_allclose(new.F[:, 0, 0], [1.19712, 1.0024], rtol=1e-15)
