@@ -10,12 +10,40 @@ sqrt(gamma P0 / rho0) F^(-(gamma+1)/2)``, ``c`` the Eulerian sound speed. Across
 Riemann invariants ``v -/+ g(F)`` hold, ``g(F) = 2 c(F) / (gamma - 1)``; across a shock, the
 Rankine-Hugoniot conditions ``s [F] = -[v]``, ``rho0 s [v] = [P]``. (Toro, "Riemann solvers and
 numerical methods for fluid dynamics", ch. 4, written here in Lagrangian form; ``p_atm`` drops out.)
+
+Input checks (stretches and densities > 0, ``P0 > 0``, or ``>= 0`` for the sound speeds, ``gamma > 1``,
+finite velocities, positions and times) run when the values are concrete and raise a ``ValueError``
+naming the parameter. Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the values are tracers and cannot
+be checked: bad values then give NaN.
 """
 
 import functools
 
 import jax
 import jax.numpy as jnp
+
+from ._checks import check_finite, check_greater, check_int, check_nonnegative, check_positive
+
+
+def _check_gas(P0, gamma, rho0, pressureless: bool = False) -> None:
+    """Check the gas's parameters (tracers pass): ``P0 > 0`` (``>= 0`` where ``pressureless``),
+    ``gamma > 1``, ``rho0 > 0``."""
+    (check_nonnegative if pressureless else check_positive)("P0", P0)
+    check_greater("gamma", gamma, 1.0)
+    check_positive("rho0", rho0)
+
+
+def _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0) -> None:
+    """Check the two states of a Riemann problem and the gas (tracers pass)."""
+    check_positive("F_L", F_L)
+    check_finite("v_L", v_L)
+    check_positive("F_R", F_R)
+    check_finite("v_R", v_R)
+    _check_gas(P0, gamma, rho0)
+
+
+def _sound_speed(F, P0, gamma, rho0):
+    return jnp.sqrt(gamma * P0 * F ** (1.0 - gamma) / rho0)
 
 
 def sound_speed(F, P0, gamma, rho0):
@@ -29,8 +57,15 @@ def sound_speed(F, P0, gamma, rho0):
 
     Returns:
         ``c = sqrt(gamma P0 F^(1-gamma) / rho0)``.
+
+    Raises:
+        ValueError: a concrete ``F`` (any entry) or ``rho0`` is not finite and > 0, ``P0`` is not
+            finite and >= 0 (``P0 = 0``, a gas without pressure, has ``c = 0``), or ``gamma`` is not
+            finite and > 1 (tracers are not checked).
     """
-    return jnp.sqrt(gamma * P0 * F ** (1.0 - gamma) / rho0)
+    check_positive("F", F)
+    _check_gas(P0, gamma, rho0, pressureless=True)
+    return _sound_speed(F, P0, gamma, rho0)
 
 
 def lagrangian_speed(F, P0, gamma, rho0):
@@ -44,15 +79,20 @@ def lagrangian_speed(F, P0, gamma, rho0):
 
     Returns:
         ``C = c / F``.
+
+    Raises:
+        ValueError: as ``sound_speed``.
     """
-    return sound_speed(F, P0, gamma, rho0) / F
+    check_positive("F", F)
+    _check_gas(P0, gamma, rho0, pressureless=True)
+    return _sound_speed(F, P0, gamma, rho0) / F
 
 
 def _branches(F, F0, v0, P0, gamma, rho0, sign):
     """The velocity behind a wave of family ``sign`` (-1 left, +1 right) that brings state ``(F0, v0)``
     to ``F``: a rarefaction for ``F >= F0`` (expansion), a shock for ``F < F0``."""
     g = 2.0 / (gamma - 1.0)
-    rare = v0 - sign * g * (sound_speed(F0, P0, gamma, rho0) - sound_speed(F, P0, gamma, rho0))
+    rare = v0 - sign * g * (_sound_speed(F0, P0, gamma, rho0) - _sound_speed(F, P0, gamma, rho0))
     dP = P0 * (F ** (-gamma) - F0 ** (-gamma))  # >= 0 in compression
     jump = jnp.sqrt(jnp.maximum(dP * (F0 - F), 0.0) / rho0)
     shock = v0 + sign * jump
@@ -64,9 +104,9 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
 
     Solves ``v_left(F*) = v_right(F*)`` (the left wave curve is increasing in ``F*``, the right one
     decreasing) by bisection in ``ln F*`` to round-off, then one Newton step on that value, so that
-    derivatives follow the implicit function theorem. Raise nothing: when the data pull apart faster
-    than ``g(F_L) + g(F_R)`` a vacuum forms and ``F*`` runs to the top of the bracket; check
-    ``vacuum_forms`` first.
+    derivatives follow the implicit function theorem. A vacuum raises nothing: when the data pull
+    apart faster than ``g(F_L) + g(F_R)`` a vacuum forms and ``F*`` runs to the top of the bracket;
+    check ``vacuum_forms`` first.
 
     Args:
         F_L: deformation gradient of the left state.
@@ -80,8 +120,14 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
 
     Returns:
         ``(F_star, v_star)``.
-    """
 
+    Raises:
+        ValueError: a concrete ``F_L``, ``F_R``, ``P0`` or ``rho0`` is not finite and > 0 (``P0 = 0``
+            has no wave curves to solve on), ``v_L`` or ``v_R`` is not finite, ``gamma`` is not finite
+            and > 1 (tracers are not checked), or ``iterations`` is not an integer >= 1.
+    """
+    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    check_int("iterations", iterations, 1)
     return _riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations)
 
 
@@ -124,9 +170,13 @@ def vacuum_forms(F_L, v_L, F_R, v_R, P0, gamma, rho0):
 
     Returns:
         ``v_R - v_L >= g(F_L) + g(F_R)``.
+
+    Raises:
+        ValueError: as ``riemann_star``.
     """
+    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     g = 2.0 / (gamma - 1.0)
-    c = lambda F: sound_speed(F, P0, gamma, rho0)
+    c = lambda F: _sound_speed(F, P0, gamma, rho0)
     return v_R - v_L >= g * (c(F_L) + c(F_R))
 
 
@@ -145,9 +195,21 @@ def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
         P0: as for ``riemann_star``.
         gamma: as for ``riemann_star``.
         rho0: as for ``riemann_star``.
+
+    Returns:
+        ``dict(F_star, v_star, a1, b1, a2, b2, rare1, rare2)``.
+
+    Raises:
+        ValueError: as ``riemann_star``.
     """
-    F_s, v_s = riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0)
-    C = lambda F: lagrangian_speed(F, P0, gamma, rho0)
+    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    return _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+
+
+def _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
+    """``riemann_waves`` without input checks."""
+    F_s, v_s = _riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, 200)
+    C = lambda F: _sound_speed(F, P0, gamma, rho0) / F
 
     def shock_speed(F0):
         dP = P0 * (F_s ** (-gamma) - F0 ** (-gamma))
@@ -187,12 +249,16 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
 
     Returns:
         ``(F, v, D)`` at ``xi``.
+
+    Raises:
+        ValueError: as ``riemann_star``.
     """
-    w = riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    w = _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     a1, b1, a2, b2, F_s, v_s = w["a1"], w["b1"], w["a2"], w["b2"], w["F_star"], w["v_star"]
     K = jnp.sqrt(gamma * P0 / rho0)
     g = 2.0 / (gamma - 1.0)
-    c = lambda F: sound_speed(F, P0, gamma, rho0)
+    c = lambda F: _sound_speed(F, P0, gamma, rho0)
     # Inside a fan, C(F) = |xi|: F = (K / |xi|)^(2 / (gamma + 1)).
     fan_F = lambda z: (K / jnp.abs(z)) ** (2.0 / (gamma + 1.0))
     e = (gamma - 1.0) / (gamma + 1.0)
@@ -244,7 +310,15 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
 
     Returns:
         ``(x, v, F)``: position, velocity and the point value of ``F``.
+
+    Raises:
+        ValueError: a concrete ``X`` (any entry) or ``t`` is not finite, or ``L``, ``P0``, ``rho0``
+            are not finite and > 0, or ``gamma`` is not finite and > 1 (tracers are not checked).
     """
+    check_finite("X", X)
+    check_finite("t", t)
+    check_positive("L", L)
+    _check_gas(P0, gamma, rho0)
     c0 = jnp.sqrt(gamma * P0 / rho0)
     t_h = (L - X) / c0
     moving = t > t_h

@@ -41,7 +41,8 @@ class Region(eqx.Module):
         shape: the region's shape, in cells (``X / h``).
         material: its material.
         rho0: its reference (initial) density.
-        velocity: its initial velocity, ``(dim,)`` (a number in 1D).
+        velocity: its initial velocity, ``(dim,)`` (a number in 1D); by default at rest, the zero
+            vector of the shape's dimension.
         energy: its initial specific internal energy (an ``AbstractEOS`` material only; 0 for
             the models of ``F`` alone, which carry no energy).
     """
@@ -49,8 +50,15 @@ class Region(eqx.Module):
     shape: AbstractShape
     material: AbstractMaterial | AbstractEOS
     rho0: Float[Array, ""] = eqx.field(converter=as_float)
-    velocity: Float[Array, " dim"] = eqx.field(converter=_as_vector, default=0.0)
+    velocity: Float[Array, " dim"] = eqx.field(converter=_as_vector, default=None)
     energy: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
+
+    def __post_init__(self):
+        # Before the converters: a velocity not given is the shape's zero vector. (A shape that is
+        # not a jaxmpm shape gets a number, and __check_init__ names the shape.)
+        if self.velocity is None:
+            dim = self.shape.dim if isinstance(self.shape, AbstractShape) else 1
+            self.velocity = (0.0,) * dim
 
     def __check_init__(self):
         if not isinstance(self.shape, AbstractShape):

@@ -4,9 +4,10 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import check_greater, check_positive
+from .._checks import check_greater, check_positive, is_concrete
 from .._util import as_float
 from ..exact_detonation import Isentrope, gamma_law_particles, isentrope_fan
 from ..explosives import (
@@ -30,6 +31,44 @@ PRODUCTS = ("isentrope", "full")
 """The ``products`` choices: on the CJ isentrope (barotropic) or the full EOS with its energy."""
 
 ENDS = ("wall", "free")
+
+
+def _ranges(dtype) -> dict[str, tuple[float, float]]:
+    """The open intervals of ``D`` and ``gamma`` where the gamma law's CJ state is finite in ``dtype``.
+
+    ``D`` enters squared (``P_CJ = rho0 D^2 / (gamma + 1)``, ``e0 = D^2 / (2 (gamma^2 - 1))``): it
+    lies between the square roots of the smallest normal number and of the largest number. Above
+    ``1 / eps`` (eps the dtype's machine epsilon) ``J_CJ = gamma / (gamma + 1)`` is within round-off
+    of 1, where there is no compression and no CJ state.
+
+    Args:
+        dtype: the parameters' float dtype.
+
+    Returns:
+        ``{"D": (lo, hi), "gamma": (1, hi)}``.
+    """
+    info = np.finfo(dtype)
+    return {
+        "D": (float(np.sqrt(info.tiny)), float(np.sqrt(info.max))),
+        "gamma": (1.0, float(1.0 / info.eps)),
+    }
+
+
+def _check_range(name: str, value, interval: tuple[float, float], why: str) -> None:
+    """Check a concrete value against an open interval (a tracer passes).
+
+    Args:
+        name: the parameter's name, for the message.
+        value: its value, finite.
+        interval: ``(lo, hi)``.
+        why: what the interval keeps finite, for the message.
+
+    Raises:
+        ValueError: ``value`` is not in ``(lo, hi)``.
+    """
+    lo, hi = interval
+    if is_concrete(value) and not lo < float(value) < hi:
+        raise ValueError(f"{name} must be in ({lo:.4g}, {hi:.4g}) ({why}), got {float(value)!r}")
 
 
 def explosive_eos(
@@ -95,9 +134,11 @@ class Detonation(AbstractScene):
     of the particles away from the front). Units are SI on the command line.
 
     Attributes:
-        D: detonation speed of the gamma-law products, > 0.
-        gamma: their adiabatic exponent, > 1.
-        rho0: the explosive's density, > 0.
+        D: detonation speed of the gamma-law products, > 0 (in float64 between 1.5e-154 and
+            1.3e154, so that ``D^2`` is finite and > 0).
+        gamma: their adiabatic exponent, > 1 (and below ``1 / eps``, 4.5e15 in float64, where
+            ``J_CJ = gamma / (gamma + 1)`` is below 1).
+        rho0: the explosive's density, > 0 (with ``D`` and ``gamma``: a finite CJ state).
         L: the slab's length (``h = L / cells``).
         burn_width: the burn's length in particle sizes (``h / ppc``), >= 1 (Uintah: 1.5).
         explosive: ``"gamma-law"`` or a JWL row's name (static).
@@ -133,6 +174,17 @@ class Detonation(AbstractScene):
     pad: int = eqx.field(static=True, default=4)
 
     def __check_init__(self):
+        """Check the parameters, each by its own name, before the CJ state and the lengths they give.
+
+        Raises:
+            ValueError: a static choice is not one of those allowed; ``D``, ``rho0`` or ``L`` is not
+                finite and > 0; ``gamma`` is not finite and > 1; ``burn_width`` is below 1; ``D`` or
+                ``gamma`` is outside the range where the gamma law's CJ state is finite in the float
+                dtype (``_ranges``); the gamma law's CJ state or detonation energy is not finite and
+                > 0 (naming ``D``, ``gamma`` and ``rho0``); ``h = L / cells``, the burn's length or
+                ``t_valid = L / D`` is not finite and > 0 (naming ``L``, ``burn_width``, ``D``).
+                Tracers are not checked.
+        """
         for name, value, allowed in (
             ("explosive", self.explosive, EXPLOSIVE_NAMES),
             ("products", self.products, PRODUCTS),
@@ -145,10 +197,68 @@ class Detonation(AbstractScene):
             raise ValueError(f"smooth_burn must be true or false, got {self.smooth_burn!r}")
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
+        check_positive("rho0", self.rho0)
         check_positive("L", self.L)
         check_greater("burn_width", self.burn_width - 1.0, -1e-12)  # >= 1 particle size
+        dtype = self.D.dtype
+        ranges = _ranges(dtype)
+        _check_range(
+            "D", self.D, ranges["D"], f"P_CJ and e0 are proportional to D^2, finite and > 0 in {dtype}"
+        )
+        _check_range(
+            "gamma",
+            self.gamma,
+            ranges["gamma"],
+            f"a finite CJ state needs J_CJ = gamma / (gamma + 1) below 1 in {dtype}",
+        )
         if self.explosive != "gamma-law":
             jwl(self.explosive)  # a row whose implied CJ state misses its tabulated D is refused
+        self._check_derived()
+
+    def _check_derived(self):
+        """The gamma law's CJ state and energy, the cell size, the burn's length and ``t_valid``:
+        each finite and > 0 (``J_CJ < 1``) in the float dtype, or a message naming the parameters
+        that give it."""
+        if not all(is_concrete(v) for v in (self.D, self.gamma, self.rho0, self.L, self.burn_width)):
+            return
+        dtype = self.D.dtype
+
+        def bad(value, below_one: bool = False) -> bool:
+            return not (jnp.isfinite(value) and value > 0 and (not below_one or value < 1))
+
+        if self.explosive == "gamma-law":
+            _, _, e0, cj = self._explosive()
+            quantities = {k: cj[k] for k in ("P_CJ", "J_CJ", "u_CJ", "c_CJ", "rho_CJ", "e_CJ")}
+            quantities["e0"] = e0
+            if not all(is_concrete(v) for v in quantities.values()):
+                return
+            wrong = [f"{k} = {float(v)!r}" for k, v in quantities.items() if bad(v, below_one=k == "J_CJ")]
+            if wrong:
+                raise ValueError(
+                    f"D={float(self.D)!r}, gamma={float(self.gamma)!r} and rho0={float(self.rho0)!r} give "
+                    f"the gamma law a CJ state out of the {dtype} range ({', '.join(wrong)}); P_CJ = rho0 "
+                    "D^2 / (gamma + 1), e0 = D^2 / (2 (gamma^2 - 1)) and the rest must be finite and > 0"
+                )
+        h = self.h
+        width = self.burn_width * h / self.ppc
+        t_valid = self.L / self.speed
+        if not all(is_concrete(v) for v in (h, width, t_valid)):
+            return
+        if bad(h):
+            raise ValueError(
+                f"L={float(self.L)!r} gives a cell size h = L / cells = {float(h)!r} in {dtype} "
+                f"(cells={self.cells}); it must be finite and > 0"
+            )
+        if bad(width):
+            raise ValueError(
+                f"burn_width={float(self.burn_width)!r} with L={float(self.L)!r} gives the burn a length "
+                f"burn_width h / ppc = {float(width)!r} in {dtype}; it must be finite and > 0"
+            )
+        if bad(t_valid):
+            raise ValueError(
+                f"L={float(self.L)!r} and the front's speed {float(self.speed)!r} (D) give t_valid = L / D = "
+                f"{float(t_valid)!r} in {dtype}; it must be finite and > 0"
+            )
 
     @property
     def h(self) -> Float[Array, ""]:

@@ -6,7 +6,14 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import check_finite, check_int, check_nonnegative, check_positive, is_concrete
+from .._checks import (
+    check_finite,
+    check_greater,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    is_concrete,
+)
 from .._util import as_float
 from ..exact import riemann_solution, riemann_waves, vacuum_forms
 from ..materials import AdiabaticGas
@@ -56,19 +63,72 @@ class Riemann(AbstractScene):
     pad: int = eqx.field(static=True, default=8)
 
     def __check_init__(self):
+        """Check the parameters, each by its own name, before the derived quantities that combine
+        them (the states' pressures and sound speeds, the vacuum condition, the star state).
+
+        Raises:
+            ValueError: ``cells`` is not an even integer >= 2; ``P0``, ``rho0``, ``F_left`` or
+                ``F_right`` is not finite and > 0; ``gamma`` is not finite and > 1; ``p_atm`` is not
+                finite and >= 0; ``v_left`` or ``v_right`` is not finite; a state's pressure ``P0
+                F^-gamma`` or sound speed is not finite and > 0 in the float dtype (naming the
+                parameters that give it); a vacuum forms between the states; the star state or a
+                wave speed is not finite (naming every parameter). Tracers are not checked.
+        """
         check_int("cells", self.cells, 2)
         if self.cells % 2:
             raise ValueError(f"cells must be even (X0 = L/2 is a cell face), got {self.cells}")
+        # The gas before the states: with P0 = 0, gamma < 1 or rho0 = inf the sound speeds vanish or
+        # change sign, and the vacuum condition below would hold for any velocities.
+        check_positive("P0", self.P0)
+        check_greater("gamma", self.gamma, 1.0)
+        check_positive("rho0", self.rho0)
+        check_nonnegative("p_atm", self.p_atm)
         check_positive("F_left", self.F_left)
         check_positive("F_right", self.F_right)
         check_finite("v_left", self.v_left)
         check_finite("v_right", self.v_right)
-        check_nonnegative("p_atm", self.p_atm)
         args = self._args()
-        if all(is_concrete(a) for a in args) and bool(vacuum_forms(*args)):
+        if not all(is_concrete(a) for a in args):
+            return
+        self._check_states()
+        vacuum = vacuum_forms(*args)
+        if is_concrete(vacuum) and bool(vacuum):
             raise ValueError(
                 "v_right - v_left must be below 2 (c(F_left) + c(F_right)) / (gamma - 1), or a vacuum "
                 f"forms between the states; got v_left={float(self.v_left)}, v_right={float(self.v_right)}"
+            )
+        self._check_waves()
+
+    def _check_states(self):
+        """Each state's pressure ``P0 F^-gamma`` and sound speed, finite and > 0 in the float dtype."""
+        for side, name in (("left", "F_left"), ("right", "F_right")):
+            F = getattr(self, name)
+            p = self.P0 * F ** (-self.gamma)
+            c = jnp.sqrt(self.gamma * self.P0 * F ** (1.0 - self.gamma) / self.rho0)
+            if not (is_concrete(p) and is_concrete(c)):
+                return
+            if not (jnp.isfinite(p) and p > 0 and jnp.isfinite(c) and c > 0):
+                raise ValueError(
+                    f"{name}={float(F)!r} with P0={float(self.P0)!r}, gamma={float(self.gamma)!r} and "
+                    f"rho0={float(self.rho0)!r} gives the {side} state a pressure P0 {name}^-gamma = "
+                    f"{float(p)!r} and a sound speed {float(c)!r} in {F.dtype}; both must be finite and > 0"
+                )
+
+    def _check_waves(self):
+        """The star state and the wave speeds, finite (``F*`` > 0)."""
+        w = riemann_waves(*self._args())
+        values = [w[k] for k in ("F_star", "v_star", "a1", "b1", "a2", "b2")]
+        if not all(is_concrete(v) for v in values):
+            return
+        if not (all(bool(jnp.isfinite(v)) for v in values) and w["F_star"] > 0):
+            given = ", ".join(
+                f"{k}={float(getattr(self, k))!r}"
+                for k in ("F_left", "v_left", "F_right", "v_right", "P0", "gamma", "rho0")
+            )
+            raise ValueError(
+                f"{given} give no finite star state and wave speeds in {self.P0.dtype} (F*="
+                f"{float(w['F_star'])!r}, v*={float(w['v_star'])!r}, speeds "
+                f"{[float(v) for v in values[2:]]}); they must be finite, with F* > 0"
             )
 
     def _args(self):
