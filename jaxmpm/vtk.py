@@ -20,6 +20,7 @@ import os
 import pathlib
 from collections.abc import Mapping
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -177,11 +178,25 @@ def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
     """
     from . import _step
 
-    setup = _step.setup(model) if setup is None else setup
+    setup = eqx.filter_jit(_step.setup)(model) if setup is None else setup
+    mass, velocity = _nodal(model, setup, state)
+    return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
+
+
+@eqx.filter_jit  # one program a series (op by op, each frame would dispatch a transfer's every primitive)
+def _nodal(model, setup, state):
+    from . import _step
+
     mass, momentum = _step.particle_to_grid(model, setup, state)
     occupied = mass > setup.tiny
-    velocity = jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass, 1.0)[:, None], 0.0)
-    return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
+    return mass, jnp.where(occupied[:, None], momentum / jnp.where(occupied, mass, 1.0)[:, None], 0.0)
+
+
+@eqx.filter_jit  # one program a series, as _nodal
+def _smoothness(state, body):
+    from .metrics import corner_jacobians, domain_corners, rotation_angle
+
+    return rotation_angle(state), jnp.min(corner_jacobians(domain_corners(state, body), body), axis=1)
 
 
 def particle_fields(state, body) -> dict[str, np.ndarray]:
@@ -200,8 +215,7 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
         ``jaxmpm.metrics.corner_jacobians``), and where the run has them ``e`` and
         ``internal.<variable>``.
     """
-    from .metrics import corner_jacobians, domain_corners, rotation_angle
-
+    rotation, corner_jacobian_min = _smoothness(state, body)
     J = np.asarray(det(state.F))
     dim = state.F.shape[-1]
     out = {
@@ -213,10 +227,8 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
         "rho": np.asarray(body.m) / (np.asarray(body.V0) * J),
         "p": -np.trace(np.asarray(state.sigma), axis1=1, axis2=2) / dim,
         "region": np.zeros(body.n) if body.region is None else np.asarray(body.region, dtype=float),
-        "rotation": np.asarray(rotation_angle(state)),
-        "corner_jacobian_min": np.asarray(
-            jnp.min(corner_jacobians(domain_corners(state, body), body), axis=1)
-        ),
+        "rotation": np.asarray(rotation),
+        "corner_jacobian_min": np.asarray(corner_jacobian_min),
     }
     if state.e is not None:
         out["e"] = np.asarray(state.e)
@@ -283,7 +295,7 @@ def write_series(
         frames.append((t_last, solution.state))
     from ._step import setup
 
-    prepared = setup(model)  # once for the series: the grid and the body do not change
+    prepared = eqx.filter_jit(setup)(model)  # once for the series: the grid and the body do not change
     X, X_model = np.asarray(solution.body.X), np.asarray(prepared.body.X)
     if X.shape != X_model.shape or not np.allclose(X, X_model, rtol=1e-12, atol=0.0):
         raise ValueError(
