@@ -64,7 +64,7 @@ def check_real(name: str, value) -> None:
             ``"{name} must be a real number, got {value!r}"`` (a long value shortened).
     """
     if is_concrete(value) and not is_real(value):
-        raise ValueError(f"{name} must be a real number, got {_brief(value)}")
+        raise ValueError(f"{name} must be a real number, got {brief(value)}")
 
 
 def check_scalar(name: str, value, batch: str = "") -> None:
@@ -197,7 +197,7 @@ def check_bool(name: str, value) -> None:
         ValueError: ``value`` is not a bool (a string such as ``"yes"``, a number, ``None``).
     """
     if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {_brief(value)}")
+        raise ValueError(f"{name} must be True or False, got {brief(value)}")
 
 
 def check_keywords(
@@ -263,7 +263,7 @@ _REPR.maxstring = 40
 _REPR.maxother = 40
 
 
-def _brief(value) -> str:
+def brief(value) -> str:
     """``repr(value)``, at most about 40 characters (a message stays one readable line)."""
     return _REPR.repr(value)
 

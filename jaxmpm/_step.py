@@ -25,7 +25,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
-from ._checks import check_int, check_positive, check_scalar, is_concrete, is_real, python_int
+from ._checks import brief, check_int, check_positive, check_scalar, is_concrete, is_real, python_int
 from ._util import as_float, contract, det, materialise
 from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
 from .explosives import ProgrammedBurn
@@ -81,15 +81,41 @@ def check_parts(scene, interpolator, transfer, viscosity) -> None:
         raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {viscosity!r}")
     if not isinstance(scene, AbstractScene):
         raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
-    if not isinstance(interpolator, AbstractInterpolator):
-        raise ValueError(
-            f"interpolator must be a jaxmpm interpolator (INTERPOLATORS: {', '.join(INTERPOLATORS)}), "
-            f"got {interpolator!r}"
-        )
+    check_interpolator(interpolator)
     if not isinstance(transfer, AbstractTransfer):
         raise ValueError(
             f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
         )
+
+
+def check_interpolator(interpolator) -> None:
+    """Check that ``interpolator`` is a jaxmpm interpolator (an object, not a registry name).
+
+    Args:
+        interpolator: the value given.
+
+    Raises:
+        ValueError: it is not an ``AbstractInterpolator``; a registry name such as ``"mpq"`` is told
+            the object to pass (``jm.MPQ()``).
+    """
+    if isinstance(interpolator, AbstractInterpolator):
+        return
+    hint = ""
+    if isinstance(interpolator, str) and interpolator in INTERPOLATORS:
+        hint = f": pass {_made_by(INTERPOLATORS[interpolator])}"
+    raise ValueError(
+        "interpolator must be a jaxmpm interpolator such as jm.CPDI() "
+        f"(INTERPOLATORS: {', '.join(INTERPOLATORS)}), got {brief(interpolator)}{hint}"
+    )
+
+
+def _made_by(make) -> str:
+    """How a user writes the interpolator a registry entry makes: ``jm.MPQ()``,
+    ``jm.GIMP(contiguous=True)``."""
+    if isinstance(make, functools.partial):
+        options = ", ".join(f"{k}={v!r}" for k, v in make.keywords.items())
+        return f"jm.{make.func.__name__}({options})"
+    return f"jm.{make.__name__}()"
 
 
 def check_cfl_limit(cfl_limit) -> None:

@@ -11,7 +11,11 @@ with ``x_R`` from a jaxmpm run (its saved history, interpolated linearly in time
 
 **The fit's variables.** Parameters stay in their physical ranges by a change of variables
 ``theta = ln(p - p_off)``: ``p_off = 1`` for ``gamma``, ``p_atm`` for ``P0``, 0 for any other (positive)
-parameter. Every ``theta`` is admissible.
+parameter. In exact arithmetic every ``theta`` is admissible; in floating point ``exp`` underflows far
+out (``gamma = 1 + exp(-40)`` is 1.0) and overflows, so a trial point whose value reaches its bound or
+is not finite, or that the scene refuses otherwise (``P0 > p_atm`` with both fitted), counts as a run
+that breaks down. When the data pull a constant against its bound (the loss falls all the way to the
+edge: no minimum inside the range), the fit ends at the edge and ``Fit.warning`` says so, naming it.
 
 **Methods.** ``method="lm"`` (the default): Levenberg-Marquardt on the residuals (damping isotropic in
 ``theta``, updated by Nielsen's rule), with the Jacobian
@@ -59,8 +63,19 @@ import numpy as np
 import optax
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from ._checks import check_int, check_nonnegative, check_positive, check_scalar, is_concrete
+from ._checks import (
+    brief,
+    check_bool,
+    check_finite,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_real,
+    check_scalar,
+    is_concrete,
+)
 from ._simulate import SaveAt, SimulationError, as_devices, failure_message, simulate
+from ._step import check_interpolator
 from ._util import host
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
@@ -81,6 +96,13 @@ MAX_RELATIVE_STD = 0.10
 METHODS = ("lm", "lbfgs", "adam")
 """The optimisers ``calibrate`` offers."""
 
+_NO_RUN = "has no run"
+"""What ``_Model.why`` says of values the scene refuses (``"... where GasSlab has no run: ..."``)."""
+
+_EDGE_SHRINK = 1e6
+"""How many times closer to its bound ``p_off`` than at its start a fitted value must have come (with
+the Gauss-Newton step pointing past the bound) for ``_at_edge`` to say the fit ran into the bound."""
+
 
 def fittable(scene: AbstractScene) -> tuple[str, ...]:
     """The names ``calibrate`` can fit: the scene's continuous parameters but ``h`` and ``dt``.
@@ -90,7 +112,16 @@ def fittable(scene: AbstractScene) -> tuple[str, ...]:
 
     Returns:
         The names, in the scene's order (for the gas slab ``P0, gamma, p_atm, rho0``).
+
+    Raises:
+        ValueError: ``scene`` is neither a jaxmpm scene nor a scene class.
     """
+    if not (
+        isinstance(scene, AbstractScene) or (isinstance(scene, type) and issubclass(scene, AbstractScene))
+    ):
+        raise ValueError(
+            f"scene must be a jaxmpm scene or scene class such as jm.GasSlab, got {brief(scene)}"
+        )
     return tuple(n for n in continuous_parameters(scene) if n not in NOT_FITTED)
 
 
@@ -143,13 +174,14 @@ class Fit:
         std: each parameter's standard error (physical units).
         covariance: the Gauss-Newton covariance in physical units, ``(p, p)``.
         covariance_theta: the same in the fit's variables ``theta = ln(p - p_off)``.
-        correlation: the correlation matrix, ``(p, p)``.
+        correlation: the correlation matrix, ``(p, p)`` (NaN where undefined: a constant whose
+            standard error is infinite, which ``warning`` names).
         condition: the condition number of ``J^T J`` in relative variables (``d r / d ln p``).
         sigma: the noise level used: ``noise`` when given, else ``sqrt(sum r^2 / (n - p))``.
         noise_given: whether ``sigma`` is the given noise.
         weakest: the direction the data see least, a unit vector in ``d ln p`` (name to component).
         warning: ``None``, or why the answer should not be trusted as it stands (identifiability, no
-            convergence).
+            convergence, a constant the data pull against the bound of its range).
         offsets: name to ``p_off`` of the fit's variables.
         rejected: every rejected trial point (``"lm"``): start, iteration, values, and whether its run
             broke down (``broke``, with the reason in ``why`` for the first ones) or raised the loss.
@@ -258,11 +290,14 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
         gives NaN everywhere, which the fit reads as a breakdown.
 
     Raises:
+        ValueError: ``scene`` or ``interpolator`` is not jaxmpm's, ``ts`` is empty, not finite or
+            negative, or ``dt`` is not one number > 0.
         SimulationError: called on concrete values, the run broke down (the step, particle and
             quantity, as ``simulate`` says them).
     """
-    ts = jnp.asarray(ts)
+    _check_parts(scene, interpolator)
     steps = _steps(ts, dt)
+    ts = jnp.asarray(ts)
     if observable(scene) == "v_plate":
         fields = ("v",)
     else:
@@ -294,8 +329,37 @@ def _steps(ts, dt, times: str = "ts") -> int:
     """The steps of ``dt`` that reach the last of the times ``ts`` (both checked first)."""
     check_positive("dt", dt)
     check_scalar("dt", dt)
+    check_real(times, ts)
+    if np.size(ts) == 0:
+        raise ValueError(f"{times} must hold at least one time (>= 0), got an empty array")
     check_nonnegative(times, ts)
     return int(np.ceil(float(np.max(np.asarray(ts))) / float(dt) - 1e-9))
+
+
+def _refusal(scene: AbstractScene, names: Sequence[str], values, off) -> str | None:
+    """Why ``scene`` with ``names`` set to ``values`` has no run (``None``: it has one).
+
+    Args:
+        scene: the scene.
+        names: the fitted names.
+        values: their physical values.
+        off: each name's ``p_off`` (the value must exceed it).
+
+    Returns:
+        ``None``, or the reason in one line: a value not finite or not above its ``p_off``, or the
+        scene's own ``ValueError`` (``"gamma must be > 1.0, got 1.0"``, ``"P0 must be > p_atm ..."``).
+    """
+    values = np.asarray(values, dtype=float)
+    for n, v, o in zip(names, values, off):
+        if not np.isfinite(v):
+            return f"{n} must be finite, got {float(v)}"
+        if not v > o:
+            return f"{n} must be > {float(o):.6g}, got {float(v):.17g}"
+    try:
+        type(scene)(**{**scene.parameter_values(), **dict(zip(names, (float(v) for v in values)))})
+    except ValueError as e:
+        return str(e)
+    return None
 
 
 class _Model:
@@ -309,13 +373,18 @@ class _Model:
         offs = offsets(scene, names)
         self.off = np.array([offs[n] for n in names])
         self.offsets = offs
+        self._refused: dict[bytes, str | None] = {}  # refused's answers, by the values' bytes
         dtype = scene.h.dtype
         off = jnp.asarray(self.off, dtype=dtype)
 
         def x_of(theta, start_theta):
             phys = off + jnp.exp(start_theta + theta)
             sc = type(scene)(**{**scene.parameter_values(), **dict(zip(names, phys))})
-            return trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
+            x = trajectory(sc, interpolator, t_data, dt=dt, **simulate_kwargs)
+            # exp underflows or overflows far out (gamma = 1 + 1e-20 is 1.0): a value past its bound
+            # or not finite has no run, and reads as a run that broke down
+            inside = jnp.all(jnp.isfinite(phys) & (phys > off))
+            return jnp.where(inside, x, jnp.nan)
 
         self.x_of = x_of  # one member's trajectory, unbatched: ``(theta, start_theta) -> x_R(t_data)``
 
@@ -357,23 +426,40 @@ class _Model:
             return tuple(host(o)[:n] for o in out)
         return host(out)[:n]
 
+    def admitted(self, start_theta, theta, ok) -> np.ndarray:
+        """``ok`` where the scene also takes the member's physical values (``refused`` is ``None``):
+        a finite run at values the scene refuses (a cross-parameter bound the fit's variables do not
+        keep, such as ``P0 > p_atm`` with both fitted) is no run."""
+        phys = np.atleast_2d(self.physical(start_theta, theta))
+        return np.array([bool(k) and self.refused(row) is None for k, row in zip(ok, phys)])
+
+    def refused(self, values: np.ndarray) -> str | None:
+        """Why the scene refuses these physical values, in its words (``None``: it takes them)."""
+        key = np.asarray(values, dtype=float).tobytes()
+        if key not in self._refused:
+            if len(self._refused) > 4096:
+                self._refused.clear()
+            self._refused[key] = _refusal(self.scene, self.names, values, self.off)
+        return self._refused[key]
+
     def residuals_and_jacobian(self, theta, start_theta, data):
         r, J = self._batched(self._rj, theta, start_theta, data)
         ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(J), axis=(1, 2))
-        return r, J, ok
+        return r, J, self.admitted(start_theta, theta, ok)
 
     def residuals(self, theta, start_theta, data):
         r = self._batched(self._r, theta, start_theta, data)
-        return r, np.all(np.isfinite(r), axis=1)
+        return r, self.admitted(start_theta, theta, np.all(np.isfinite(r), axis=1))
 
     def why(self, values: np.ndarray) -> tuple[str, dict | None]:
-        """A plain run at ``values`` (physical): what broke (the step, particle and quantity)."""
+        """A plain run at ``values`` (physical): what broke (the step, particle and quantity), or why
+        the scene refuses them."""
         trial = dict(zip(self.names, (float(v) for v in values)))
         where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
-        try:
-            sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
-        except ValueError as e:  # a point the fit's variables reach, not one the user gave
-            return f"the fit reached {where}, where {type(self.scene).__name__} has no run: {e}", None
+        refused = self.refused(values)
+        if refused is not None:  # a point the fit's variables reach, not one the user gave
+            return f"the fit reached {where}, where {type(self.scene).__name__} {_NO_RUN}: {refused}", None
+        sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
         sol = simulate(
             sc,
             self.interpolator,
@@ -445,26 +531,31 @@ def calibrate(
         A ``Fit``, with its uncertainty. A ``CalibrationWarning`` is issued when ``Fit.warning`` is set.
 
     Raises:
-        ValueError: bad input (names that are not continuous parameters, ``h`` or ``dt``, a name
-            given twice, an unknown method, data of mismatched shapes or not finite, times not
-            increasing from ``>= 0``, data beyond the grid, a bad ``noise`` or threshold, bad
+        ValueError: bad input (a ``scene`` or ``interpolator`` that is not jaxmpm's, names that are
+            not continuous parameters, ``h`` or ``dt``, a name given twice, an unknown method, data
+            of mismatched shapes, empty or not finite, times not increasing from ``>= 0``, data
+            beyond the grid, ``starts`` that are not a dict or a non-empty list of dicts of numbers,
+            a start the scene refuses, a bad ``tol``, ``noise``, threshold or ``progress``, bad
             ``devices`` or ``devices`` with a method other than ``"lm"``).
         CalibrationError: every start broke down, or the best start cannot go on because every
             step toward a lower loss is a run that breaks down.
     """
-    names = tuple(fit)
+    _check_parts(scene, interpolator)
+    names = tuple(_names(fit))
     _check_names(scene, names)
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(repr(m) for m in METHODS)}, got {method!r}")
     check_int("iterations", iterations, 1)
     check_positive("learning_rate", learning_rate)
+    _check_tol(tol)
     _check_thresholds(noise, max_correlation, max_relative_std)
+    if progress is not None:
+        check_bool("progress", progress)
     devices = as_devices(devices)
     if devices is not None and method != "lm":
         raise ValueError(f"devices spreads the starts of method='lm' only, got method={method!r}")
     t_data, x_data = _check_data(scene, t_data, x_data)
-    if isinstance(starts, dict) or starts is None:
-        starts = [starts or {}]
+    starts = _start_list(starts)
     unknown = [k for s in starts for k in s if k not in names]
     if unknown:
         raise ValueError(
@@ -473,7 +564,7 @@ def calibrate(
     base = {n: float(getattr(scene, n)) for n in names}
     start_phys = np.array([[float(s.get(n, base[n])) for n in names] for s in starts])
     model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs, devices)
-    _check_starts(names, model.off, start_phys)
+    _check_starts(names, model.off, start_phys, scene)
     start_theta = np.log(start_phys - model.off)
     data = np.broadcast_to(np.asarray(x_data), (len(starts), x_data.shape[0]))
     L = _scale(scene, x_data)
@@ -532,26 +623,34 @@ def calibrate_each(
         One ``Fit`` per data set.
 
     Raises:
-        ValueError: bad input, as for ``calibrate``.
+        ValueError: bad input, as for ``calibrate``; ``x_sets`` not 2D or holding no data set;
+            ``start`` not a dict of numbers.
         CalibrationError: the start's run breaks down.
     """
-    names = tuple(fit)
+    _check_parts(scene, interpolator)
+    names = tuple(_names(fit))
     _check_names(scene, names)
     check_int("iterations", iterations, 1)
+    _check_tol(tol)
     _check_thresholds(noise, max_correlation, max_relative_std)
+    check_real("x_sets", x_sets)
     x_sets = np.asarray(x_sets, dtype=float)
-    if x_sets.ndim != 2:
-        raise ValueError(f"x_sets must be 2D (data sets, times), got shape {x_sets.shape}")
-    t_data, _ = _check_data(scene, t_data, x_sets[0])
+    if x_sets.ndim != 2 or x_sets.shape[0] == 0:
+        raise ValueError(
+            f"x_sets must be 2D (data sets, times) with at least one data set, got shape {x_sets.shape}"
+        )
+    t_data, _ = _check_data(scene, t_data, x_sets[0], what="x_sets[0]")
     for i, xs in enumerate(x_sets):
         _check_data(scene, t_data, xs, what=f"x_sets[{i}]")
-    start = dict(start or {})
+    if start is not None and not isinstance(start, dict):
+        raise ValueError(f"start must be a dict of start values (name to number) or None, got {brief(start)}")
+    start = _start_list(start, what="start")[0]
     unknown = [k for k in start if k not in names]
     if unknown:
         raise ValueError(f"start names parameters that are not fitted: {sorted(unknown)}; fitted: {names}")
     model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
     one = np.array([[float(start.get(n, getattr(scene, n))) for n in names]])
-    _check_starts(names, model.off, one)
+    _check_starts(names, model.off, one, scene)
     start_theta = np.repeat(np.log(one - model.off), x_sets.shape[0], axis=0)
     L = _scale(scene, x_sets)
     t0 = time.perf_counter()
@@ -585,7 +684,70 @@ def calibrate_each(
     return fits
 
 
+def _check_parts(scene, interpolator) -> None:
+    """Refuse a scene or an interpolator that is not jaxmpm's, naming what is allowed, before any run.
+
+    Raises:
+        ValueError: ``scene`` is not a jaxmpm scene, or ``interpolator`` not a jaxmpm interpolator
+            (``check_interpolator``: a registry name such as ``"mpq"`` is told to pass ``jm.MPQ()``).
+    """
+    if not isinstance(scene, AbstractScene):
+        raise ValueError(f"scene must be a jaxmpm scene such as jm.GasSlab(), got {brief(scene)}")
+    check_interpolator(interpolator)
+
+
+def _names(fit, what: str = "fit") -> list:
+    """``fit`` as a list, refused by the name ``what`` where it is not a sequence of names (a string
+    would be read letter by letter: ``"gamma"`` for ``("gamma",)``)."""
+    if not isinstance(fit, str):
+        try:
+            return list(fit)
+        except TypeError:
+            pass
+    raise ValueError(
+        f"{what} must be a sequence of parameter names such as ('gamma', 'P0'), got {brief(fit)}"
+    )
+
+
+def _start_list(starts, what: str = "starts") -> list[dict]:
+    """``starts`` as a non-empty list of dicts of finite numbers (``None``: one start at the scene's
+    values; one dict: one start).
+
+    Raises:
+        ValueError: ``starts`` is not ``None``, a dict, or a non-empty list or tuple of dicts; or a
+            value is not one finite number.
+    """
+    if starts is None:
+        starts = [{}]
+    elif isinstance(starts, dict):
+        starts = [starts]
+    elif isinstance(starts, (list, tuple)):
+        starts = list(starts)
+        if not starts:
+            raise ValueError(
+                f"{what} must be a dict or a non-empty list of dicts of start values (or None: the "
+                "scene's values), got an empty list"
+            )
+    else:
+        raise ValueError(f"{what} must be a dict or a list of dicts of start values, got {brief(starts)}")
+    for i, s in enumerate(starts):
+        if not isinstance(s, dict):
+            raise ValueError(f"{what}[{i}] must be a dict of start values (name to number), got {brief(s)}")
+        for k, v in s.items():
+            label = f"{what}[{i}][{k!r}]" if what == "starts" else f"{what}[{k!r}]"
+            check_finite(label, v)
+            check_scalar(label, v)
+    return starts
+
+
+def _check_tol(tol) -> None:
+    check_nonnegative("tol", tol)
+    check_scalar("tol", tol)
+
+
 def _check_names(scene, names) -> None:
+    if not names:
+        raise ValueError(f"fit must name at least one constant; fittable: {', '.join(fittable(scene))}")
     check_names(scene, names)
     for n in names:
         if n in NOT_FITTED:
@@ -607,10 +769,15 @@ def _check_thresholds(noise, max_correlation, max_relative_std) -> None:
 
 def _check_data(scene, t_data, x_data, what="x_data"):
     dtype = scene.h.dtype
+    check_real("t_data", t_data)
+    check_real(what, x_data)
     t_data = jnp.asarray(t_data, dtype=dtype)
     x_data = jnp.asarray(x_data, dtype=dtype)
     if t_data.ndim != 1 or t_data.shape != x_data.shape or t_data.size < 2:
-        raise ValueError(f"t_data and {what} must be 1D arrays of the same length (>= 2)")
+        raise ValueError(
+            f"t_data and {what} must be 1D arrays of the same length (>= 2), got shapes "
+            f"{tuple(t_data.shape)} and {tuple(x_data.shape)}"
+        )
     for name, a in (("t_data", t_data), (what, x_data)):
         bad = np.flatnonzero(~np.isfinite(np.asarray(a)))
         if bad.size:
@@ -632,11 +799,18 @@ def _check_data(scene, t_data, x_data, what="x_data"):
     return t_data, x_data
 
 
-def _check_starts(names, off, start_phys) -> None:
+def _check_starts(names, off, start_phys, scene=None) -> None:
+    """Refuse start values at or below their ``p_off`` and, given ``scene``, any it refuses."""
     for i, n in enumerate(names):
         bad = np.flatnonzero(~(start_phys[:, i] > off[i]))
         if bad.size:
             raise ValueError(f"start {int(bad[0])}: {n} = {start_phys[bad[0], i]:.6g} must be > {off[i]:.6g}")
+    if scene is not None:
+        for b, row in enumerate(start_phys):
+            why = _refusal(scene, names, row, off)
+            if why is not None:
+                values = ", ".join(f"{n}={v:.6g}" for n, v in zip(names, row))
+                raise ValueError(f"start {b} ({values}): {type(scene).__name__} refuses it: {why}")
 
 
 def _loss(r, L):
@@ -851,10 +1025,15 @@ def _finish(
     state, failed = run["state"], run["failed"]
     final = run["history"][-1]
     if np.all(state == "failed"):
+        if all(_NO_RUN in msg for msg in failed.values()):
+            reason, todo = _out_of_range(model)
+            advice = f"{reason[0].upper()}{reason[1:]}: {todo}."
+        else:
+            advice = "Reduce dt, choose starts nearer the data, or raise pad if the slab leaves the grid."
         raise CalibrationError(
             "calibrate: every start broke down: "
             + "; ".join(f"start {b}, {msg}" for b, msg in sorted(failed.items()))
-            + ". Reduce dt, choose starts nearer the data, or raise pad if the slab leaves the grid."
+            + f". {advice}"
         )
     best = int(np.nanargmin(np.where(state == "failed", np.nan, final)))
     theta = run["theta"]
@@ -873,14 +1052,18 @@ def _finish(
         if warn:
             raise CalibrationError(blocked)
     u = uncertainty(model.scene, names, fitted, r, J_theta=J, noise=noise, offs=model.offsets)
-    at_fit = type(model.scene)(**{**model.scene.parameter_values(), **fitted})
-    warning = identifiability(
-        at_fit,
-        u,
-        np.asarray(model.t_data),
-        max_correlation=max_correlation,
-        max_relative_std=max_relative_std,
-    )
+    edge = _at_edge(model, theta[best], start_theta[best], r, J)
+    if edge is not None:  # no minimum inside the range: the Gaussian about it describes nothing
+        warning = edge
+    else:
+        at_fit = type(model.scene)(**{**model.scene.parameter_values(), **fitted})
+        warning = identifiability(
+            at_fit,
+            u,
+            np.asarray(model.t_data),
+            max_correlation=max_correlation,
+            max_relative_std=max_relative_std,
+        )
     if state[best] in ("iterations", "stalled"):
         why = (
             f"the fit did not converge in {run['iterations']} iterations"
@@ -917,6 +1100,64 @@ def _finish(
         rejected=list(run["rejected"]),
         residuals=np.asarray(r),
         best_start=best,
+    )
+
+
+def _out_of_range(model) -> tuple[str, str]:
+    """Why a fit is pulled out of the scene's range, and what to do: the data want values the scene
+    does not allow, with the constants not fitted held at theirs.
+
+    Returns:
+        ``(reason, todo)``, each a clause.
+    """
+    others = [n for n in fittable(model.scene) if n not in model.names]
+    held = f" ({', '.join(others)})" if others else ""
+    return (
+        f"the data pull the fit out of {type(model.scene).__name__}'s range",
+        f"check the data and the constants not fitted{held}, or fit other constants",
+    )
+
+
+def _at_edge(model, theta, start_theta, r, J) -> str | None:
+    """Whether the fit ran into the bound of a fitted value, in words (``None``: it did not).
+
+    A fitted value ``p`` is at its bound ``p_off`` when ``p - p_off`` fell more than ``_EDGE_SHRINK``
+    times from the start's, and the Gauss-Newton step from there (``dp = (p - p_off) dtheta``, so a
+    ``theta`` step below -1 crosses the bound) would take it past the bound: the loss falls all the
+    way to the bound, and the fit has no minimum inside the range (``exp`` in the fit's variables
+    would reach the bound itself, which the scene refuses).
+
+    Args:
+        model: the fit's ``_Model``.
+        theta: the best start's ``theta``, relative to its start (0 at the start).
+        start_theta: its start, ``ln(p_start - p_off)``.
+        r: its residuals.
+        J: their Jacobian in ``theta``.
+
+    Returns:
+        ``None``, or a sentence naming each value at its bound and what to check.
+    """
+    J, r = np.asarray(J, float), np.asarray(r, float)
+    norms = np.linalg.norm(J, axis=0)
+    scaled = J / np.where(norms > 0, norms, 1.0)  # columns of one size: a vanishing one keeps its rank
+    step = -np.linalg.lstsq(scaled, r, rcond=None)[0]
+    with np.errstate(divide="ignore"):
+        step = np.where(norms > 0, step / np.where(norms > 0, norms, 1.0), -np.inf)
+    phys = model.physical(start_theta, theta)
+    start = model.physical(start_theta, np.zeros_like(theta))
+    at = [i for i in range(len(model.names)) if theta[i] < -np.log(_EDGE_SHRINK) and step[i] < -1.0]
+    if not at:
+        return None
+    where = "; ".join(
+        f"{model.names[i]} = {float(phys[i])!r} (must be > {model.off[i]:g}; {model.names[i]} - "
+        f"{model.off[i]:g} fell from {start[i] - model.off[i]:.3g} to {phys[i] - model.off[i]:.3g})"
+        for i in at
+    )
+    reason, todo = _out_of_range(model)
+    return (
+        f"the fit ran into the edge of the allowed range: {where}. The loss falls all the way to the "
+        "edge, so the fit has no minimum inside the range, and the standard errors describe no "
+        f"minimum: {reason}; {todo}"
     )
 
 
@@ -962,7 +1203,10 @@ def _blocked_message(
         why, failure = model.why(phys)
         values = dict(zip(model.names, (float(v) for v in phys)))
     advice = "choose starts nearer the data, or reduce dt"
-    if failure is not None and failure["status"] & LEFT_GRID:
+    if failure is None and model.refused(np.array(list(values.values()))) is not None:
+        reason, todo = _out_of_range(model)
+        advice = f"{todo} ({reason})"
+    elif failure is not None and failure["status"] & LEFT_GRID:
         scene = model.scene
         sc = type(scene)(**{**scene.parameter_values(), **values})
         reach = sc.max_reach() if hasattr(sc, "max_reach") else None
@@ -996,11 +1240,28 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
         ``correlation``, ``condition``, ``sigma``, ``weakest`` (name to the component of the weakest
         direction in ``d ln p``), ``strongest`` (the best-determined one), ``relative_std`` (name to
         ``std / |value|``). Standard errors are ``inf`` where ``J^T J`` is singular, NaN when the
-        noise cannot be estimated (``n <= p`` and no ``noise``).
+        noise cannot be estimated (``n <= p`` and no ``noise``); the correlations are then undefined,
+        NaN (``identifiability`` says why in words).
+
+    Raises:
+        ValueError: ``names`` empty or not a sequence of names, ``r`` or ``J_theta`` not finite or
+            of shapes other than ``(n,)`` and ``(n, len(names))``, or ``fitted`` lacking a name.
     """
-    names = tuple(names)
+    names = tuple(_names(names, "names"))
+    if not names:
+        raise ValueError("names must name at least one fitted parameter, got none")
     offs = offsets(scene, names) if offs is None else offs
+    check_finite("r", r)
+    check_finite("J_theta", J_theta)
     r, Jt = np.asarray(r, float), np.asarray(J_theta, float)
+    if r.ndim != 1 or Jt.shape != (r.size, len(names)):
+        raise ValueError(
+            f"r must be 1D (n,) and J_theta (n, {len(names)}) for the {len(names)} names, got shapes "
+            f"{r.shape} and {Jt.shape}"
+        )
+    missing = [k for k in names if k not in fitted]
+    if missing:
+        raise ValueError(f"fitted must hold a value for every name; missing: {', '.join(missing)}")
     n, p = Jt.shape
     value = np.array([fitted[k] for k in names])
     D = value - np.array([offs[k] for k in names])  # d p / d theta
@@ -1023,6 +1284,11 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
     with np.errstate(invalid="ignore", divide="ignore"):
         s_theta = np.sqrt(np.diag(C_theta))
         corr = C_theta / np.outer(s_theta, s_theta)
+        if np.all(np.isfinite(C_theta)) and not np.all(np.isfinite(corr)):
+            # sigma = 0 (residuals exactly zero): the correlation does not depend on sigma
+            A_inv = np.linalg.inv(A)
+            s_unit = np.sqrt(np.diag(A_inv))
+            corr = A_inv / np.outer(s_unit, s_unit)
     weakest, strongest = V[:, 0], V[:, -1]
     weakest = weakest * np.sign(weakest[np.argmax(np.abs(weakest))])
     strongest = strongest * np.sign(strongest[np.argmax(np.abs(strongest))])
@@ -1038,6 +1304,12 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
         strongest={k: float(c) for k, c in zip(names, strongest)},
         eigenvalues=w,
     )
+
+
+def _and(names) -> str:
+    """``"a"``, ``"a and b"``, ``"a, b and c"``."""
+    names = list(names)
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
 def identifiability(
@@ -1067,16 +1339,29 @@ def identifiability(
             f"the noise cannot be estimated from {np.asarray(t_data).size} observations for {p} "
             "constants: give noise, or observe more often"
         )
+    std = u["std"]
+    unknown = [k for k in names if not np.isfinite(std[k])]
+    if unknown:  # J^T J singular: no standard error, so no correlation either
+        errors = "standard error of {} is" if len(unknown) == 1 else "standard errors of {} are"
+        problems.append(
+            f"the {errors.format(_and(unknown))} infinite (J^T J is singular: some combination of the "
+            f"constants leaves the loss unchanged), so the correlations of {_and(unknown)} are undefined"
+        )
     pairs = [
         (abs(float(corr[i, j])), names[i], names[j])
         for i in range(p)
         for j in range(i + 1, p)
-        if not np.isfinite(corr[i, j]) or abs(float(corr[i, j])) > max_correlation
+        if names[i] not in unknown
+        and names[j] not in unknown
+        and (not np.isfinite(corr[i, j]) or abs(float(corr[i, j])) > max_correlation)
     ]
     for c, a, b in pairs:  # enough digits to tell the correlation from 1
+        if not np.isfinite(c):
+            problems.append(f"the correlation of {a} and {b} is undefined")
+            continue
         digits = 4 if not c < 1.0 else min(8, max(4, int(-np.log10(1.0 - c)) + 2))
         problems.append(f"{a} and {b} are correlated {c:.{digits}f} (beyond {max_correlation:g})")
-    loose = [k for k in names if not rel[k] <= max_relative_std]
+    loose = [k for k in names if k not in unknown and not rel[k] <= max_relative_std]
     if loose:
         problems.append(
             "relative standard error "
@@ -1180,8 +1465,20 @@ class Information:
 
         Returns:
             ``(p, p)``.
+
+        Raises:
+            ValueError: the plan (or its window) does not determine the constants: their standard
+                errors are infinite (``std``), so their correlations are undefined.
         """
-        C = np.linalg.inv(self.fisher(t_end, samples, 1.0))
+        info = self.fisher(t_end, samples, 1.0)
+        w = np.linalg.eigvalsh(info)
+        if not w[0] > 1e-14 * max(w[-1], 1e-300):
+            raise ValueError(
+                f"this plan does not determine {_and(self.names)}: the Fisher information is singular, "
+                "so the standard errors are infinite (std) and the correlations undefined; observe "
+                "longer or more often, or determine fewer constants"
+            )
+        C = np.linalg.inv(info)
         s = np.sqrt(np.diag(C))
         return C / np.outer(s, s)
 
@@ -1214,15 +1511,20 @@ def information(
         An ``Information``: ``fisher()``, ``std()``, ``correlation()``, for the plan or part of it.
 
     Raises:
-        ValueError: bad names, times or noise.
+        ValueError: a ``scene`` or ``interpolator`` that is not jaxmpm's, bad names, times (not a
+            non-empty 1D array of finite times from ``>= 0``, increasing) or noise.
         CalibrationError: the run at the scene's constants breaks down.
     """
-    names = tuple(fit)
+    _check_parts(scene, interpolator)
+    names = tuple(_names(fit))
     _check_names(scene, names)
     check_positive("noise", noise)
+    check_finite("ts", ts)
     ts = np.asarray(ts, dtype=float)
     if ts.ndim != 1 or ts.size < 1 or ts[0] < 0 or np.any(np.diff(ts) <= 0):
-        raise ValueError("ts must be a 1D array of times from >= 0, increasing")
+        raise ValueError(
+            f"ts must be a non-empty 1D array of times from >= 0, increasing, got {brief(ts.tolist())}"
+        )
     model = _Model(scene, interpolator, names, jnp.asarray(ts, dtype=scene.h.dtype), dt, simulate_kwargs)
     value = np.array([float(getattr(scene, n)) for n in names])
     start_theta = np.log(value - model.off)[None]
@@ -1265,12 +1567,23 @@ def profile(
         **simulate_kwargs: passed to ``simulate``.
 
     Returns:
-        A dict: ``alpha``, ``loss`` (NaN where the run broke down, and ``ok`` False there), ``ok``, and
-        each name to its values along the line.
+        A dict: ``alpha``, ``loss`` (NaN where the run broke down or the scene refuses the values, and
+        ``ok`` False there), ``ok``, and each name to its values along the line.
+
+    Raises:
+        ValueError: a ``scene`` or ``interpolator`` that is not jaxmpm's, ``fit`` not a ``Fit``,
+            ``alphas`` empty or not finite, bad data (as for ``calibrate``), or a point along the
+            line at or below a bound ``p_off``.
     """
+    _check_parts(scene, interpolator)
+    if not isinstance(fit, Fit):
+        raise ValueError(f"fit must be the Fit that calibrate returned, got {brief(fit)}")
     names = tuple(fit.fitted)
     direction = fit.weakest if direction is None else direction
     d = np.array([float(direction.get(n, 0.0)) for n in names])
+    check_finite("alphas", alphas)
+    if np.size(alphas) == 0:
+        raise ValueError("alphas must hold at least one step along the direction, got an empty array")
     alphas = np.asarray(alphas, dtype=float).reshape(-1)
     t_data, x_data = _check_data(scene, t_data, x_data)
     values = np.array([fit.fitted[n] for n in names]) * np.exp(alphas[:, None] * d[None, :])

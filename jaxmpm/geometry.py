@@ -24,7 +24,7 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Bool, Float, Real
 
-from ._checks import _brief, check_finite, check_nonnegative, check_positive, is_real
+from ._checks import brief, check_finite, check_nonnegative, check_positive, is_real
 
 
 def _vector(name: str) -> Callable[[object], tuple[float, ...]]:
@@ -32,7 +32,7 @@ def _vector(name: str) -> Callable[[object], tuple[float, ...]]:
 
     def convert(value: object) -> tuple[float, ...]:
         if not is_real(value):
-            raise ValueError(f"{name} must be a real number or a list of 1 to 3 of them, got {_brief(value)}")
+            raise ValueError(f"{name} must be a real number or a list of 1 to 3 of them, got {brief(value)}")
         arr = np.asarray(value, dtype=np.float64)
         if arr.ndim == 0:
             arr = arr.reshape(1)
@@ -50,7 +50,7 @@ def _scalar(name: str) -> Callable[[object], float]:
 
     def convert(value: object) -> float:
         if not is_real(value) or np.ndim(value) != 0:
-            raise ValueError(f"{name} must be a real number, got {_brief(value)}")
+            raise ValueError(f"{name} must be a real number, got {brief(value)}")
         return float(value)
 
     return convert
@@ -61,7 +61,7 @@ def _shape(name: str) -> Callable[[object], "AbstractShape"]:
 
     def convert(value: object) -> AbstractShape:
         if not isinstance(value, AbstractShape):
-            raise ValueError(f"{name} must be a shape (an AbstractShape), got {_brief(value)}")
+            raise ValueError(f"{name} must be a shape (an AbstractShape), got {brief(value)}")
         return value
 
     return convert
@@ -70,10 +70,10 @@ def _shape(name: str) -> Callable[[object], "AbstractShape"]:
 def _shapes(value: object) -> tuple["AbstractShape", ...]:
     """The converter of ``shapes``: a tuple or list of shapes, as a tuple."""
     if not isinstance(value, (tuple, list)):
-        raise ValueError(f"shapes must be a tuple or list of shapes, got {_brief(value)}")
+        raise ValueError(f"shapes must be a tuple or list of shapes, got {brief(value)}")
     for i, s in enumerate(value):
         if not isinstance(s, AbstractShape):
-            raise ValueError(f"shapes[{i}] must be a shape (an AbstractShape), got {_brief(s)}")
+            raise ValueError(f"shapes[{i}] must be a shape (an AbstractShape), got {brief(s)}")
     return tuple(value)
 
 

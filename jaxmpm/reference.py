@@ -92,6 +92,7 @@ from ._checks import (
     check_real,
     is_concrete,
 )
+from .scenes.gas_slab import GasSlab
 
 
 class SlabSolution(eqx.Module):
@@ -135,7 +136,7 @@ def gas_slab(
 
     Args:
         scene: the ``GasSlab`` whose parameters to use (its ``cells`` and ``h`` give only ``L``).
-        ts: increasing times to report at (``ts[0] >= 0``).
+        ts: non-decreasing times to report at, a non-empty 1-d sequence from ``ts[0] >= 0``.
         cells: Lagrangian cells of the reference (independent of the MPM resolution).
         rtol: diffrax's relative tolerance.
         atol: diffrax's absolute tolerance, relative to the scales of F, v and x.
@@ -145,11 +146,16 @@ def gas_slab(
         The ``SlabSolution``.
 
     Raises:
-        ValueError: bad ``cells``, ``rtol`` or ``atol``.
+        ValueError: ``scene`` is not a ``GasSlab``; ``ts`` is not a non-empty 1-d sequence of finite,
+            non-decreasing times from ``>= 0``; or bad ``cells``, ``rtol``, ``atol`` or ``max_steps``.
     """
+    if not isinstance(scene, GasSlab):
+        raise ValueError(f"scene must be a GasSlab (jm.GasSlab(...)), got {type(scene).__name__}")
+    _check_times(ts, strictly=False)
     check_int("cells", cells, 2)
     check_positive("rtol", rtol)
     check_positive("atol", atol)
+    check_int("max_steps", max_steps, 1)
     ts = jnp.asarray(ts, dtype=scene.h.dtype)
     L = scene.length
     dX = L / cells
@@ -549,11 +555,13 @@ def radial_profile_convergence(
     return rows
 
 
-def _check_times(ts) -> None:
-    """Check the report times: a finite, strictly increasing 1-d sequence from ``ts[0] >= 0``.
+def _check_times(ts, strictly: bool = True) -> None:
+    """Check the report times: a finite, increasing 1-d sequence from ``ts[0] >= 0``; a tracer passes.
 
     Args:
         ts: the times, as given.
+        strictly: whether each time must exceed the last (``gas_radial``), or may equal it
+            (``gas_slab``: diffrax reports a repeated time twice).
 
     Raises:
         ValueError: ``ts`` is not such a sequence.
@@ -567,5 +575,14 @@ def _check_times(ts) -> None:
     check_finite("ts", arr)
     if arr[0] < 0:
         raise ValueError(f"ts must start at >= 0, got ts[0]={float(arr[0])}")
-    if not np.all(np.diff(arr) > 0):
-        raise ValueError("ts must be strictly increasing")
+    step = np.diff(arr)
+    if strictly and not np.all(step > 0):
+        i = int(np.flatnonzero(~(step > 0))[0])
+        raise ValueError(
+            f"ts must be strictly increasing, got ts[{i}]={float(arr[i])}, ts[{i + 1}]={float(arr[i + 1])}"
+        )
+    if not np.all(step >= 0):
+        i = int(np.flatnonzero(~(step >= 0))[0])
+        raise ValueError(
+            f"ts must be non-decreasing, got ts[{i}]={float(arr[i])}, ts[{i + 1}]={float(arr[i + 1])}"
+        )

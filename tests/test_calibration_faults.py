@@ -1,0 +1,276 @@
+"""Calibration's faults: bad input to the gas slab's reference and to the fits refused by name before
+anything is traced, a fit the data pull against the bound of a constant's range kept inside it and
+reported, and an unidentifiable fit's warning saying what is true (never "nan")."""
+
+import inspect
+import warnings
+
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+from jaxmpm import calibrate as cal
+from jaxmpm import reference
+
+SLAB = dict(cells=8, h=1 / 8, pad=96)  # a coarse model: each fit below takes seconds
+TS = np.linspace(0.0, 6e-3, 31)
+DT = 0.2 * (1 / 8) / np.sqrt(1.4 * 4e5)
+X = np.linspace(1.0, 2.0, TS.size)  # data of the right shape; the checks below refuse before any run
+
+
+# -- reference.gas_slab ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "ts, match",
+    [
+        ([-1e-3, 1e-3], r"ts must start at >= 0, got ts\[0\]=-0.001"),
+        ([], r"ts must be a non-empty 1-d sequence of times, got shape \(0,\)"),
+        ([2e-3, 1e-3], r"ts must be non-decreasing, got ts\[0\]=0.002, ts\[1\]=0.001"),
+        ([0.0, float("nan")], "ts must be finite"),
+        ([[0.0, 1e-3]], r"ts must be a non-empty 1-d sequence of times, got shape \(1, 2\)"),
+        (1e-3, r"ts must be a non-empty 1-d sequence of times, got shape \(\)"),
+        ("abc", "ts must be a real number, got 'abc'"),
+    ],
+)
+def test_gas_slab_reference_refuses_bad_times_by_name(ts, match):
+    with pytest.raises(ValueError, match=match):
+        reference.gas_slab(jm.GasSlab(**SLAB), ts, cells=8)
+
+
+def test_gas_slab_reference_refuses_a_scene_that_is_not_a_gas_slab():
+    with pytest.raises(ValueError, match=r"scene must be a GasSlab \(jm.GasSlab\(...\)\), got GasExpansion"):
+        reference.gas_slab(jm.GasExpansion(), [0.0, 1e-3], cells=8)
+    with pytest.raises(ValueError, match="max_steps must be an integer >= 1, got 0"):
+        reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3], cells=8, max_steps=0)
+
+
+def test_gas_slab_reference_takes_a_repeated_time():
+    """diffrax reports a repeated time twice: the times need only be non-decreasing."""
+    sol = reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3, 1e-3], cells=8)
+    x = np.asarray(sol.x_free)
+    assert x[0] == 1.0 and x[1] == x[2] > 1.0
+
+
+# -- calibrate, calibrate_each, information, profile, trajectory -----------------------------------------
+
+
+def raw(fn):
+    """``fn`` without the suite's runtime type checks of its annotations (what a user runs)."""
+    return inspect.unwrap(fn)
+
+
+INTERP_STR = (
+    r"interpolator must be a jaxmpm interpolator such as jm.CPDI\(\) \(INTERPOLATORS: spq, gimp, cpgimp, "
+    r"cpdi, mpq, cpdi2\), got 'mpq': pass jm.MPQ\(\)"
+)
+
+
+def _fit():
+    return cal.Fit(
+        fitted={"gamma": 1.4, "P0": 3e5},
+        loss=0.0,
+        iterations=0,
+        history=np.zeros((1, 1)),
+        starts_fitted={},
+        wall_s=0.0,
+        weakest={"gamma": 0.6, "P0": 0.8},
+    )
+
+
+@pytest.mark.parametrize(
+    "name, call, match",
+    [
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, starts=[], dt=DT),
+            r"starts must be a dict or a non-empty list of dicts of start values .*got an empty list",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, starts=[1.4], dt=DT),
+            r"starts\[0\] must be a dict of start values \(name to number\), got 1.4",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, starts=[dict(gamma="a")], dt=DT),
+            r"starts\[0\]\['gamma'\] must be a real number, got 'a'",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), [], [], dt=DT),
+            r"t_data and x_data must be 1D arrays of the same length \(>= 2\), got shapes \(0,\) and \(0,\)",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, [], dt=DT),
+            r"t_data and x_data must be 1D arrays .* got shapes \(31,\) and \(0,\)",
+        ),
+        ("calibrate", lambda f, sc: f(sc, "mpq", TS, X, dt=DT), INTERP_STR),
+        (
+            "calibrate",
+            lambda f, sc: f("gas-slab", jm.CPDI(), TS, X, dt=DT),
+            r"scene must be a jaxmpm scene such as jm.GasSlab\(\), got 'gas-slab'",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, fit="gamma", dt=DT),
+            r"fit must be a sequence of parameter names such as \('gamma', 'P0'\), got 'gamma'",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, fit=(), dt=DT),
+            "fit must name at least one constant; fittable: P0, gamma, p_atm, rho0",
+        ),
+        ("calibrate", lambda f, sc: f(sc, jm.CPDI(), TS, X, tol=float("nan"), dt=DT), "tol must be finite"),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, progress="no", dt=DT),
+            "progress must be True or False",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, fit=("P0", "p_atm"), starts=dict(P0=5e4), dt=DT),
+            r"start 0 \(P0=50000, p_atm=100000\): GasSlab refuses it: P0 must be > p_atm",
+        ),
+        (
+            "calibrate_each",
+            lambda f, sc: f(sc, jm.CPDI(), TS, np.zeros((0, TS.size)), dt=DT),
+            r"x_sets must be 2D \(data sets, times\) with at least one data set, got shape \(0, 31\)",
+        ),
+        ("calibrate_each", lambda f, sc: f(sc, "mpq", TS, X[None], dt=DT), INTERP_STR),
+        (
+            "calibrate_each",
+            lambda f, sc: f(sc, jm.CPDI(), [], np.zeros((1, 0)), dt=DT),
+            r"t_data and x_sets\[0\] must be 1D arrays .* got shapes \(0,\) and \(0,\)",
+        ),
+        (
+            "calibrate_each",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X[None], start=[], dt=DT),
+            r"start must be a dict of start values \(name to number\) or None, got \[\]",
+        ),
+        (
+            "information",
+            lambda f, sc: f(sc, jm.CPDI(), [], dt=DT),
+            r"ts must be a non-empty 1D array of times from >= 0, increasing, got \[\]",
+        ),
+        ("information", lambda f, sc: f(sc, "mpq", TS, dt=DT), INTERP_STR),
+        ("trajectory", lambda f, sc: f(sc, jm.CPDI(), [], dt=DT), "ts must hold at least one time"),
+        ("trajectory", lambda f, sc: f(sc, "mpq", TS, dt=DT), INTERP_STR),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, _fit(), [], dt=DT),
+            "alphas must hold at least one",
+        ),
+        ("profile", lambda f, sc: f(sc, "mpq", TS, X, _fit(), [0.0], dt=DT), INTERP_STR),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, {"gamma": 1.4}, [0.0], dt=DT),
+            "fit must be the Fit that calibrate returned",
+        ),
+        ("fittable", lambda f, sc: f("gas-slab"), "scene must be a jaxmpm scene or scene class"),
+        (
+            "uncertainty",
+            lambda f, sc: f(sc, (), {}, [1.0], J_theta=np.zeros((1, 0))),
+            "names must name at least one fitted parameter",
+        ),
+    ],
+)
+def test_calibration_refuses_bad_input_by_name_before_any_run(name, call, match):
+    fn = getattr(cal, name)
+    # as a user runs it: the function's own check
+    with pytest.raises(ValueError, match=match):
+        call(raw(fn), jm.GasSlab(**SLAB))
+    # under the suite's runtime type checks of the annotations a TypeError may come first
+    with pytest.raises((ValueError, TypeError)):
+        call(fn, jm.GasSlab(**SLAB))
+
+
+# -- a fit pulled against a bound ------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_a_fit_pulled_to_gamma_1_stays_inside_and_says_it_ran_into_the_edge():
+    """Data that expand further than any gamma > 1 allows at the model's P0 pull gamma to 1: the step
+    to gamma = 1 + exp(-51), which is 1.0 in float64, is a trial the scene refuses, rejected as a
+    broken run would be; the fit ends inside the range and its warning names the edge."""
+    truth = jm.GasSlab(gamma=1.05, P0=4e5, **SLAB)
+    x = np.asarray(cal.trajectory(truth, jm.CPDI(), TS, dt=DT))
+    model = jm.GasSlab(gamma=1.4, P0=3e5, **SLAB)
+    with pytest.warns(
+        cal.CalibrationWarning, match="the fit ran into the edge of the allowed range: gamma = 1"
+    ):
+        fit = cal.calibrate(model, jm.CPDI(), TS, x, fit=("gamma",), dt=DT, iterations=30, progress=False)
+    assert fit.fitted["gamma"] > 1.0
+    jm.GasSlab(**{**model.parameter_values(), **fit.fitted})  # a scene the fit's answer makes
+    assert "(must be > 1; gamma - 1 fell from 0.4 to" in fit.warning
+    assert "check the data and the constants not fitted (P0, p_atm, rho0)" in fit.warning
+    refused = [e for e in fit.rejected if e["broke"] and "why" in e]
+    assert refused and "where GasSlab has no run: gamma must be > 1" in refused[0]["why"]
+
+
+@pytest.mark.slow
+def test_a_fit_inside_the_range_does_not_warn_of_the_edge():
+    x = np.asarray(cal.trajectory(jm.GasSlab(gamma=1.3, **SLAB), jm.CPDI(), TS, dt=DT))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", cal.CalibrationWarning)
+        fit = cal.calibrate(jm.GasSlab(**SLAB), jm.CPDI(), TS, x, fit=("gamma",), dt=DT, progress=False)
+    assert fit.fitted["gamma"] == pytest.approx(1.3, rel=1e-6) and fit.warning is None
+
+
+# -- an unidentifiable fit -------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_an_unidentifiable_fit_says_which_standard_errors_are_infinite_never_nan():
+    """Scaling P0, p_atm and rho0 together leaves the slab's motion unchanged: J^T J is singular."""
+    sc = jm.GasSlab(**SLAB)
+    x = np.asarray(cal.trajectory(sc, jm.CPDI(), TS, dt=DT))
+    x = x + 0.01 * np.random.default_rng(0).standard_normal(x.size)
+    with pytest.warns(cal.CalibrationWarning) as record:
+        fit = cal.calibrate(
+            sc, jm.CPDI(), TS, x, fit=("P0", "p_atm", "rho0"), dt=DT, iterations=5, progress=False
+        )
+    message = str(record[-1].message)
+    assert "nan" not in message.lower() and message == fit.warning
+    assert message.startswith(
+        "the data do not determine the constants: the standard errors of P0, p_atm and rho0 are infinite "
+        "(J^T J is singular"
+    )
+    assert "so the correlations of P0, p_atm and rho0 are undefined" in message
+    assert all(np.isinf(v) for v in fit.std.values())
+
+
+def test_identifiability_names_the_constant_whose_standard_error_is_infinite():
+    sc = jm.GasSlab(**SLAB)
+    J = np.array([[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]])  # proportional columns: singular
+    u = cal.uncertainty(sc, ("gamma", "P0"), {"gamma": 1.4, "P0": 3e5}, [0.1, -0.1, 0.0], J_theta=J)
+    text = cal.identifiability(sc, u, TS[:3])
+    assert "nan" not in text.lower()
+    assert "the standard errors of gamma and P0 are infinite" in text
+    assert "the correlations of gamma and P0 are undefined" in text
+
+
+def test_zero_residuals_give_a_correlation_not_nan():
+    """With residuals exactly zero (sigma = 0) the standard errors are zero and the correlation, which
+    does not depend on sigma, is still defined."""
+    sc = jm.GasSlab(**SLAB)
+    J = np.array([[1.0, 2.0], [2.0, 4.1], [3.0, 6.0]])
+    u = cal.uncertainty(sc, ("gamma", "P0"), {"gamma": 1.4, "P0": 3e5}, np.zeros(3), J_theta=J)
+    corr = np.asarray(u["correlation"])
+    assert np.all(np.isfinite(corr)) and corr[0, 0] == pytest.approx(1.0) and abs(corr[0, 1]) > 0.99
+    text = cal.identifiability(sc, u, TS[:3])
+    assert text is not None and "nan" not in text.lower() and "gamma and P0 are correlated 0.99" in text
+
+
+def test_information_correlation_of_a_plan_that_determines_nothing_is_refused():
+    info = cal.Information(
+        names=("P0", "p_atm"),
+        values={"P0": 3e5, "p_atm": 1e5},
+        ts=TS[:3],
+        jacobian=np.array([[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]]),
+        noise=0.01,
+    )
+    assert all(np.isinf(v) for v in info.std().values())
+    with pytest.raises(ValueError, match="this plan does not determine P0 and p_atm: the Fisher information"):
+        info.correlation()
