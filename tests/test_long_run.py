@@ -325,20 +325,22 @@ def test_cli_resume_interrupted_exits_130_and_continues(tmp_path, monkeypatch, c
     assert_states_identical(resumed.state, full.state)
 
 
-def can_signal() -> bool:
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler (``KeyboardInterrupt``, as in a user's process) for the test, and
+    what was there back after it: pytest-xdist's workers ignore SIGINT (the controller takes
+    Ctrl-C). Handlers are set in the main thread, where the workers run their tests."""
     import signal
     import threading
 
-    return (
-        threading.current_thread() is threading.main_thread()
-        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    )
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers can only be set in the main thread")
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
 
 
-needs_sigint = pytest.mark.skipif(not can_signal(), reason="needs Python's SIGINT handler in the main thread")
-
-
-@needs_sigint
+@pytest.mark.usefixtures("python_sigint")
 def test_a_real_ctrl_c_stops_the_run_at_once(tmp_path, monkeypatch):
     import os
     import signal
@@ -365,7 +367,7 @@ def test_a_real_ctrl_c_stops_the_run_at_once(tmp_path, monkeypatch):
     assert info.value.step == 20 and long_run.load(path)[1]["step"] == 20
 
 
-@needs_sigint
+@pytest.mark.usefixtures("python_sigint")
 def test_waiting_for_a_chunk_sees_ctrl_c_while_it_runs():
     import os
     import signal
@@ -403,7 +405,7 @@ def test_waiting_for_a_chunk_sees_ctrl_c_while_it_runs():
     assert seen - sent < 0.25
 
 
-@needs_sigint
+@pytest.mark.usefixtures("python_sigint")
 def test_ctrl_c_is_held_back_while_a_chunk_is_recorded():
     import os
     import signal
