@@ -214,6 +214,7 @@ def test_the_talk_reads_the_frames_before_a_breakdown_as_healthy():
     assert int(state_at(sol, failed_at).status) == int(sol.status)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "dt, steps, bit",
     [(1e-3, 3, st_bits.CFL), (1e-5, 3000, st_bits.LEFT_GRID)],
@@ -227,6 +228,7 @@ def test_a_run_that_broke_down_by_its_step_or_the_grid_has_a_finite_derivative(d
     assert np.isfinite(float(jax.grad(lambda b: jnp.sum(run(b).state.x))(200.0)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, dim", [("spq", 1), ("mpq", 1), ("cpdi", 2)])
 def test_the_derivative_of_a_run_broken_by_a_non_finite_step_is_that_of_its_last_good_state(name, dim):
     """A compression that inverts the particles at step 6: the discarded step is NaN, and the
@@ -337,6 +339,7 @@ def test_an_ensemble_checks_each_members_values_together():
         jm.ensemble(slab, jm.CPDI(), vary=vary, dt=1e-6, steps=3)
 
 
+@pytest.mark.slow
 def test_the_metrics_refuse_what_they_cannot_measure():
     scene = jm.GasExpansion(cells=2, ppc=1)
     sol = jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=2)

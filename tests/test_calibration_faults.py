@@ -45,6 +45,7 @@ def test_gas_slab_reference_refuses_a_scene_that_is_not_a_gas_slab():
         reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3], cells=8, max_steps=0)
 
 
+@pytest.mark.slow
 def test_gas_slab_reference_takes_a_repeated_time():
     """diffrax reports a repeated time twice: the times need only be non-decreasing."""
     sol = reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3, 1e-3], cells=8)

@@ -167,6 +167,7 @@ def test_a_ctrl_c_that_python_ignored_is_raised_at_the_next_poll():
         signal.signal(signal.SIGINT, previous)
 
 
+@pytest.mark.slow
 def test_output_into_a_closed_pipe_is_quiet():
     reader = subprocess.Popen(["head", "-1"], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL)
     env = dict(os.environ)

@@ -100,6 +100,7 @@ def test_exact_solution_of_the_scene_is_the_closed_form():
     assert float(scene.t_valid) == pytest.approx(0.1 / 8000.0, rel=1e-15)
 
 
+@pytest.mark.slow
 def test_cli_json_has_burn_fraction_pressure_errors_and_cj_state(capsys):
     argv = "run detonation D=8000 gamma=3 rho0=1875 L=0.01 cells=40 ends=wall burn=time smooth=true"
     argv += " --interpolator cpdi --viscosity --t-end 1e-6 --cfl 0.3 --max-steps 2000 --json"
@@ -260,6 +261,7 @@ def test_detonators_of_another_dimension_are_refused():
         jm.simulate(scene, jm.MPQ(), dt=1e-8, steps=1)
 
 
+@pytest.mark.slow
 def test_a_line_detonator_lights_a_3d_block_as_a_cylindrical_front():
     """A 3D block lit by the line along z through (0, 0): the burn fraction depends on the distance from
     the line alone (equal for particles at equal distance, whatever their z), lit where the front has

@@ -68,6 +68,7 @@ def factored_and_per_entry(grid, body, st, sigma, V, corners, tracks_corners):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("interpolator", [jm.CPDI(), jm.CPDI2(), jm.MPQ()], ids=["cpdi", "cpdi2", "mpq"])
 def test_factored_forces_and_gradient_equal_the_contraction_with_dphi(interpolator, dim):

@@ -183,6 +183,7 @@ def _compare(a, b, scales, mask=None, tol=1e-10):
         np.testing.assert_allclose(u, v, rtol=tol, atol=tol * scale, err_msg=key)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("end", ENDS)
 @pytest.mark.parametrize("gamma", GAMMAS)
 def test_quadrature_reproduces_gamma_law(gamma, end):

@@ -103,6 +103,7 @@ def _reference_p_star(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
         return float(lo)
 
 
+@pytest.mark.slow
 def test_newton_reaches_the_root_to_round_off():
     """Random states over many decades of pressure and density ratio, both shock and rarefaction
     branches, gamma from near 1 to 3, against an independent high-precision bisection."""
@@ -301,6 +302,7 @@ def test_jit_and_vmap_over_points():
     np.testing.assert_allclose(g(x), noh(x, 1.0)["p"], rtol=1e-14)
 
 
+@pytest.mark.slow
 def test_vmap_over_states_and_gamma():
     rows = [CASES[k] for k in CASES]
     batch = [jnp.asarray(col) for col in zip(*rows)]
@@ -323,6 +325,7 @@ def _central(f, x, h):
     return (f(x + h) - f(x - h)) / (2.0 * h)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["1-sod", "2-123", "3-left-blast", "4-right-blast"])
 def test_gradient_of_p_star_matches_central_differences(case):
     rho_l, u_l, p_l, rho_r, u_r, p_r = CASES[case]
@@ -334,6 +337,7 @@ def test_gradient_of_p_star_matches_central_differences(case):
         np.testing.assert_allclose(jax.jacfwd(f)(x), grad, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_gradient_of_the_solution_in_fan_and_star():
     """d rho / d gamma at a point inside Sod's fan and one in its star region, and the Noh state."""
     x = jnp.array([-0.1, 0.2])

@@ -4,6 +4,8 @@ leaves float64, dtype promotion and matplotlib's backend as the user had them.""
 import subprocess
 import sys
 
+import pytest
+
 PROBE = """
 import importlib, pkgutil, sys
 import jax, matplotlib
@@ -26,6 +28,7 @@ print(len(names), before == after, before, after)
 """
 
 
+@pytest.mark.slow
 def test_importing_jaxmpm_leaves_global_configuration_alone():
     env = {"PATH": "", "JAX_PLATFORMS": "cpu"}  # no MPLBACKEND, no JAX_ENABLE_X64 from the test run
     out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env, timeout=300)

@@ -79,6 +79,7 @@ def test_gathers_read_the_nodes_and_zero_off_the_grid(g, width, tail):
     assert single.tobytes() == expected.tobytes()
 
 
+@pytest.mark.slow
 def test_windowed_scatter_and_gather_differentiate_as_the_single_node_forms():
     rng = np.random.default_rng(5)
     base, idx = _runs(rng, 50, 1, 2)
@@ -98,6 +99,7 @@ def test_windowed_scatter_and_gather_differentiate_as_the_single_node_forms():
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["spq", "mpq", "cpdi", "cpdi2"])
 def test_1d_stencils_name_their_runs_of_consecutive_nodes(name):
     scene = jm.GasExpansion(cells=5, ppc=3, pad=3)
@@ -113,6 +115,7 @@ def test_1d_stencils_name_their_runs_of_consecutive_nodes(name):
         np.testing.assert_array_equal(runs, np.asarray(base)[:, :, None] + np.arange(runs.shape[2]))
 
 
+@pytest.mark.slow
 def test_stencils_without_runs_have_no_base():
     scene = jm.GasExpansion(cells=3, ppc=2, pad=3, dim=2)
     model = jm.Model(scene, jm.SPQ(), jm.FLIP())

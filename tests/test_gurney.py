@@ -91,6 +91,7 @@ def test_calibrate_reads_v_plate_and_names_the_scenes(tmp_path, capsys):
     usage(capsys, ["calibrate", "gurney-slab", "metal=lead", "--data", str(path)], "metal must be one of")
 
 
+@pytest.mark.slow
 def test_run_json_reports_the_plate(capsys):
     argv = "run gurney-slab cells=20 pad=60 --interpolator cpdi --viscosity --t-end 8e-6 --cfl 0.3"
     assert main([*argv.split(), "--max-steps", "5000", "--json"]) == 0

@@ -128,6 +128,7 @@ def test_calibrate_refuses_a_column_named_twice(capsys, tmp_path):
     usage(capsys, ["calibrate", "gas-slab", "--data", str(data)], "has 2 columns named 't'; it needs one")
 
 
+@pytest.mark.slow
 def test_calibrate_names_a_trial_point_the_fit_reached_as_the_fits_not_the_users(capsys, tmp_path):
     """Data no gas slab can follow drive the fit's trial points to P0 = p_atm (exp underflows), a
     scene that does not exist: that trial is rejected as a broken run would be, not reported as
@@ -472,6 +473,7 @@ def _argv(rng, data: str) -> list[str]:
     return [command, scene, *items, *tail]
 
 
+@pytest.mark.slow
 def test_fuzz_assignments_end_in_a_status_and_one_line(capsys, data, no_runs):
     good, _ = data
     rng = np.random.default_rng(20240611)

@@ -47,6 +47,7 @@ RIEMANN_CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(RIEMANN_CASES))
 def test_riemann_exact_solution_satisfies_its_wave_relations(case):
     sc = jm.Riemann(gamma=1.4, P0=1.0, rho0=1.3, **RIEMANN_CASES[case])
@@ -131,6 +132,7 @@ def test_vacuum_exact_solution_is_consistent():
 # ---------------------------------------------------------------- manufactured solutions
 
 
+@pytest.mark.slow
 def test_manufactured_talk_field_reproduces_the_gas_expansion_exactly():
     """u = beta t X through the general manufactured scene (autodiff body force, exact tractions)
     gives the talk's scene to round-off: the 5/8 boundary step included."""
@@ -378,6 +380,7 @@ def test_work_precision_cli(tmp_path):
     assert all(r["compile_s"] > 0 and r["wall_s"] > 0 for r in rows)
 
 
+@pytest.mark.slow
 def test_run_cli_to_an_end_time(capsys):
     import json
 

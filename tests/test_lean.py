@@ -86,6 +86,7 @@ def primitives(jaxpr) -> list[str]:
     return [eqn.primitive.name for eqn in equations(jaxpr)]
 
 
+@pytest.mark.slow
 def test_step_holds_only_declared_physics():
     base = primitives(step_jaxpr(Gas())[1])
     with_traction = primitives(step_jaxpr(Gas(traction=traction))[1])
@@ -131,6 +132,7 @@ def test_affine_matrices_are_in_the_step_only_for_apic(name):
     assert matrices_in == expected and matrices_out == expected
 
 
+@pytest.mark.slow
 def test_a_two_material_step_holds_both_models_and_nothing_else():
     """A body of a gas region and a neo-Hookean region: the step holds the gas's power of ``J`` and the
     solid's logarithm, as many of each as the one-material steps, and no energy equation."""
@@ -152,6 +154,7 @@ def test_a_two_material_step_holds_both_models_and_nothing_else():
     assert state.e is None and state.internal is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ordering", ["usl", "musl"])
 def test_2d_step_copies_what_the_particles_read_once_and_1d_does_not(ordering, monkeypatch):
     """In 2D and 3D the step writes the stencil's node indices and the nodal acceleration and velocity

@@ -418,6 +418,7 @@ def test_ctrl_c_is_held_back_while_a_chunk_is_recorded():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.slow
 def test_a_chunk_longer_than_the_run_is_cut_to_it(tmp_path):
     """A chunk is never longer than the run (a masked chunk still computes every step of it)."""
     scene = jm.GasExpansion(cells=4)

@@ -109,6 +109,7 @@ def test_uniform_stress_balances_the_face_tractions_after_the_body_moved(name):
         assert dv < 1e-9 * BETA, (dim, dv)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("name", ["spq", "cpdi", "mpq"])
 def test_the_state_kept_after_a_breakdown_is_the_last_good_one_bit_for_bit(name, dim):
@@ -154,6 +155,7 @@ def axis_aligned_error(name, cells, dim=2):
     return float(jm.errors(scene, sol.state, sol.body)["x_rms_abs"])
 
 
+@pytest.mark.slow
 def test_axis_aligned_exact_fields_and_body_force():
     """At t = 0 the body is undeformed and moving; the exact F is diagonal; with dim = 1 the field is
     the 2D one restricted to an axis."""
@@ -329,6 +331,7 @@ def test_cli_dim_rejected_where_it_is_not_allowed(capsys):
     assert "dim must be 1, 2 or 3" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_vtk_grid_in_2d_is_in_vtk_order(tmp_path):
     scene = jm.GasExpansion(dim=2, cells=2, pad=2)
     sol = jm.simulate(scene, jm.SPQ(), dt=DT, steps=2, saveat=jm.SaveAt(every=1))

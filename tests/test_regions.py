@@ -107,6 +107,7 @@ def test_layout_assigns_each_particle_to_the_one_region_holding_it():
     np.testing.assert_allclose(corners.mean(axis=1), np.asarray(body.X), atol=1e-15)
 
 
+@pytest.mark.slow
 def test_a_one_box_region_runs_as_the_scene_of_one_body():
     """A gas slab built from one Box region equals GasSlab to round-off."""
     slab = jm.GasSlab(P0=3.0, gamma=1.4, p_atm=1.0, rho0=1.0, h=0.1, cells=10, ppc=2, pad=20)
@@ -128,6 +129,7 @@ def test_a_one_box_region_runs_as_the_scene_of_one_body():
         assert b.state.e is None and b.state.internal is None  # a model of F alone carries no energy
 
 
+@pytest.mark.slow
 def test_two_blocks_collide_with_exact_momentum_and_the_impedance_weighted_interface_velocity():
     """Elastic blocks of density 1 and 4 (same E) meet at 0.5: the interface moves at
     ``(Z_a v_a + Z_b v_b) / (Z_a + Z_b)``, ``Z = sqrt(E rho)``, until a wave returns from an end."""
@@ -167,6 +169,7 @@ def test_two_blocks_collide_with_exact_momentum_and_the_impedance_weighted_inter
         assert np.all(np.diff(np.asarray(sol.state.x[:, 0])) > 0)  # the blocks stick; nothing crosses
 
 
+@pytest.mark.slow
 def test_history_variables_live_in_the_state_history_and_gradient():
     scene = jm.Bodies(
         parts=(jm.Region(Box(0.0, 20.0), Peak(), 1.0, -0.5, 1.0),), cells=20, h=0.05, left="wall"
@@ -316,6 +319,7 @@ def test_resume_of_a_run_with_energy_and_history_variables_is_bit_exact(tmp_path
     assert float(np.min(full.state.internal["J_min"])) < 1.0
 
 
+@pytest.mark.slow
 def test_cli_json_carries_density_pressure_energy_and_region(capsys):
     from jaxmpm.cli import main
 

@@ -10,6 +10,7 @@ import jaxmpm as jm
 DT, H, RHO, C = 1e-3, 0.1, 2.0, 300.0
 
 
+@pytest.mark.slow
 def test_simple_shear_and_a_uniform_expansion():
     visc = jm.ArtificialViscosity(c_shear=0.5)
     g = 4.0  # shear rate: F_new = F_old + dt L with L = [[0, g], [0, 0]]
@@ -56,6 +57,7 @@ def test_it_acts_where_the_flow_shears():
     assert float(jnp.max(jnp.abs(a.state.x - b.state.x))) > 0.1 * float(disk.h)
 
 
+@pytest.mark.slow
 def test_in_1d_the_shear_viscosity_adds_nothing():
     """In 1D the rate of deformation is all volumetric (``dev(D) = 0``): a shock tube with an energy
     equation runs bit for bit as with the bulk viscosity alone, its energies included."""

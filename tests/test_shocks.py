@@ -40,6 +40,7 @@ def star_region(scene, sol, margin=0.03):
     return inside & (np.abs(x - (x0 + float(w["contact"]) * t)) > margin)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cpdi", "mpq"])
 def test_sod_star_plateaus_within_one_percent(name):
     """800 particles (400 cells, 2 per cell): the star region's mean pressure and velocity."""
@@ -54,6 +55,7 @@ def test_sod_star_plateaus_within_one_percent(name):
     assert abs(float(w["p_star"]) - P_STAR) < 5e-6 and abs(float(w["u_star"]) - U_STAR) < 5e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cpdi", "mpq"])
 def test_sod_l1_errors_fall_with_refinement(name):
     errs = np.array(
@@ -116,6 +118,7 @@ def test_noh_post_shock_density_and_shock_position():
     np.testing.assert_array_equal(np.asarray(sol.state.v[-5:, 0]), -1.0)  # the gas ahead is untouched
 
 
+@pytest.mark.slow
 def test_a_contact_at_rest_stays_still_to_round_off(interpolator):
     scene = jm.Interface()
     sol = jm.simulate(scene, interpolator, dt=1e-3, steps=200)
@@ -173,6 +176,7 @@ def test_eos_closed_forms():
     assert set(jm.MIE_GRUNEISEN) == {"copper", "steel-4340", "al-6061"}
 
 
+@pytest.mark.slow
 def test_copper_plates_meet_on_their_hugoniot():
     """Two copper plates (Mie-Grueneisen) meet at +-200 m/s: behind the two shocks the copper is at rest
     at p = rho0 Us up, rho = rho0 Us / (Us - up), Us = c0 + s up (the Rankine-Hugoniot jump of the

@@ -40,6 +40,7 @@ def test_scan_equals_python_loop(interpolator, transfer):
     assert int(sol.state.step) == steps
 
 
+@pytest.mark.slow
 def test_no_recompilation_for_new_parameter_values():
     """New values of the continuous parameters reuse the compiled run: nothing is traced or compiled
     again (JAX reports every trace and every backend compilation to its monitoring listeners)."""
@@ -65,6 +66,7 @@ def test_default_keeps_no_history():
     assert sol.history is None and sol.ts is None
 
 
+@pytest.mark.slow
 def test_save_every_k_matches_separate_runs():
     saveat = jm.SaveAt(every=3, fields=("F", "x"))
     sol = jm.simulate(SCENE, jm.CPDI(), dt=1e-5, steps=10, saveat=saveat)
@@ -229,6 +231,7 @@ def test_bad_ordering():
         jm.simulate(SCENE, jm.SPQ(), dt=1e-5, steps=1, ordering="usf")
 
 
+@pytest.mark.slow
 def test_errors_compile_only_for_a_new_particle_count_and_equal_op_by_op():
     """``jm.errors`` is two compiled programs: the scene's exact solution, and the errors for the shape
     of the fields. On a particle count it has not seen it compiles those two (op by op it would compile

@@ -132,6 +132,7 @@ def test_rotation_angle_3d_about_an_axis_is_the_2d_angle():
     np.testing.assert_allclose(a3, np.abs(a2), rtol=0, atol=TOL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 def test_spurious_rotation_and_its_gradient_at_identity_and_at_a_rotation(dim):
     body = box([2] * dim)
@@ -184,6 +185,7 @@ def test_vorticity_of_a_spin_plus_a_stretch():
 # radial velocity and its spread -------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 def test_radial_velocity_of_a_uniform_expansion(dim):
     body, c = disk_body(dim)
@@ -315,6 +317,7 @@ def numpy_corner_jacobians(corners, r0):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_reference_domains_have_unit_corner_jacobians_tracked_and_implied(dim):
     body = box([3, 2, 2][:dim], ppc=2, h=0.5)

@@ -48,6 +48,7 @@ def path(mat, Fs):
     return eqx.filter_jit(lambda Fs: jax.lax.scan(one, z0, (Fs[:-1], Fs[1:]))[1])(Fs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_uniaxial_strain_is_elastic_then_holds_on_the_yield_surface(dim):
     """``F = diag(1 - k eps, 1, 1)``, eps = 1e-4, 100 steps. The step's increment of ``L_xx dt`` is
@@ -192,6 +193,7 @@ def test_a_rigid_rotation_rotates_the_stress_and_keeps_q():
     assert 0.0 < q[-1] / q0 - 1.0 < 2 * theta_dtheta
 
 
+@pytest.mark.slow
 def test_no_yield_stress_is_a_fluid_and_no_deformation_is_finite():
     fluid = jm.ElasticPlastic(STEEL, G=G, Y=0.0)
     z0 = fluid.initial_internal(jnp.zeros(2))

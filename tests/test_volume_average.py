@@ -26,6 +26,7 @@ def _stencil_and_F(interpolator, seed=0):
     return s, stencil, x, F
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["cell", "node"])
 def test_volume_average_is_the_defined_average(kind):
     """cell: J_bar is the V0-weighted mean of J over the particles whose centre lies in the cell; node:
@@ -53,6 +54,7 @@ def test_volume_average_is_the_defined_average(kind):
     assert not np.allclose(expected, J)  # the average did something
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["cell", "node"])
 @pytest.mark.parametrize("interpolator", [jm.SPQ(), jm.CPDI()], ids=["spq", "cpdi"])
 def test_a_uniform_J_is_its_own_average(kind, interpolator):
