@@ -329,15 +329,24 @@ def test_cli_resume_interrupted_exits_130_and_continues(tmp_path, monkeypatch, c
 def python_sigint():
     """Python's own SIGINT handler (``KeyboardInterrupt``, as in a user's process) for the test, and
     what was there back after it: pytest-xdist's workers ignore SIGINT (the controller takes
-    Ctrl-C). Handlers are set in the main thread, where the workers run their tests."""
+    Ctrl-C). Handlers are set in the main thread, where the workers run their tests. The cyclic
+    garbage collector is paused meanwhile: an interrupt that lands in one of its callbacks (XLA's
+    runs there) is reported as unraisable and lost, and each of these tests times one signal."""
+    import gc
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers can only be set in the main thread")
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, before)
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+        if collecting:
+            gc.enable()
 
 
 @pytest.mark.usefixtures("python_sigint")
