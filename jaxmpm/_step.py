@@ -78,13 +78,13 @@ def check_parts(scene, interpolator, transfer, viscosity) -> None:
             interpolator, transfer).
     """
     if viscosity is not None and not isinstance(viscosity, ArtificialViscosity):
-        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {viscosity!r}")
+        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {brief(viscosity)}")
     if not isinstance(scene, AbstractScene):
         raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
     check_interpolator(interpolator)
     if not isinstance(transfer, AbstractTransfer):
         raise ValueError(
-            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {transfer!r}"
+            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {brief(transfer)}"
         )
 
 
