@@ -96,7 +96,7 @@ def check_finite(name: str, value) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} must be finite, got {_show(arr)}")
+            raise ValueError(f"{name} must be finite, got {show(arr)}")
 
 
 def check_positive(name: str, value) -> None:
@@ -113,7 +113,7 @@ def check_positive(name: str, value) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr > 0):
-            raise ValueError(f"{name} must be > 0, got {_show(arr)}")
+            raise ValueError(f"{name} must be > 0, got {show(arr)}")
 
 
 def check_nonnegative(name: str, value) -> None:
@@ -130,7 +130,7 @@ def check_nonnegative(name: str, value) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr >= 0):
-            raise ValueError(f"{name} must be >= 0, got {_show(arr)}")
+            raise ValueError(f"{name} must be >= 0, got {show(arr)}")
 
 
 def check_greater(name: str, value, bound: float) -> None:
@@ -148,7 +148,7 @@ def check_greater(name: str, value, bound: float) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr > bound):
-            raise ValueError(f"{name} must be > {bound}, got {_show(arr)}")
+            raise ValueError(f"{name} must be > {bound}, got {show(arr)}")
 
 
 def check_less(name: str, value, bound: float) -> None:
@@ -166,7 +166,7 @@ def check_less(name: str, value, bound: float) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr < bound):
-            raise ValueError(f"{name} must be < {bound}, got {_show(arr)}")
+            raise ValueError(f"{name} must be < {bound}, got {show(arr)}")
 
 
 def check_int(name: str, value, minimum: int) -> None:
@@ -268,7 +268,15 @@ def brief(value) -> str:
     return _REPR.repr(value)
 
 
-def _show(arr: np.ndarray) -> str:
+def show(arr: np.ndarray) -> str:
+    """A value for a message: a number as its ``repr`` (``inf``, ``nan`` as such), an array briefly.
+
+    Args:
+        arr: the value, as a NumPy array.
+
+    Returns:
+        The text.
+    """
     if arr.ndim == 0:
         v = float(arr)
         return repr(v) if math.isfinite(v) else str(v)

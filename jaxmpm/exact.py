@@ -12,17 +12,29 @@ Rankine-Hugoniot conditions ``s [F] = -[v]``, ``rho0 s [v] = [P]``. (Toro, "Riem
 numerical methods for fluid dynamics", ch. 4, written here in Lagrangian form; ``p_atm`` drops out.)
 
 Input checks (stretches and densities > 0, ``P0 > 0``, or ``>= 0`` for the sound speeds, ``gamma > 1``,
-finite velocities, positions and times) run when the values are concrete and raise a ``ValueError``
-naming the parameter. Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the values are tracers and cannot
-be checked: bad values then give NaN.
+finite velocities, positions and times, a similarity variable that is not NaN, reference positions
+inside the body, one number per parameter of a Riemann problem) run when the values are concrete and
+raise a ``ValueError`` naming the parameter. Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the
+values are tracers and cannot be checked: bad values then give NaN.
 """
 
 import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from ._checks import check_finite, check_greater, check_int, check_nonnegative, check_positive
+from ._checks import (
+    check_finite,
+    check_greater,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_real,
+    check_scalar,
+    is_concrete,
+    show,
+)
 
 
 def _check_gas(P0, gamma, rho0, pressureless: bool = False) -> None:
@@ -40,6 +52,16 @@ def _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0) -> None:
     check_positive("F_R", F_R)
     check_finite("v_R", v_R)
     _check_gas(P0, gamma, rho0)
+
+
+def _check_one_problem(caller: str, F_L, v_L, F_R, v_R, P0, gamma, rho0) -> None:
+    """Check the states and the gas of one Riemann problem (``_check_states``) and that each is one
+    number: ``caller`` solves for one star state (tracers pass, so ``jax.vmap`` solves several)."""
+    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    batch = f"; to solve several Riemann problems, jax.vmap over {caller}"
+    args = dict(F_L=F_L, v_L=v_L, F_R=F_R, v_R=v_R, P0=P0, gamma=gamma, rho0=rho0)
+    for name, value in args.items():
+        check_scalar(name, value, batch)
 
 
 def _sound_speed(F, P0, gamma, rho0):
@@ -108,6 +130,9 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
     apart faster than ``g(F_L) + g(F_R)`` a vacuum forms and ``F*`` runs to the top of the bracket;
     check ``vacuum_forms`` first.
 
+    The states and the gas are one number each (one problem); ``jax.vmap`` over this function
+    solves several.
+
     Args:
         F_L: deformation gradient of the left state.
         v_L: velocity of the left state.
@@ -124,9 +149,10 @@ def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):
     Raises:
         ValueError: a concrete ``F_L``, ``F_R``, ``P0`` or ``rho0`` is not finite and > 0 (``P0 = 0``
             has no wave curves to solve on), ``v_L`` or ``v_R`` is not finite, ``gamma`` is not finite
-            and > 1 (tracers are not checked), or ``iterations`` is not an integer >= 1.
+            and > 1, or any of them is an array with a shape (tracers are not checked); or
+            ``iterations`` is not an integer >= 1.
     """
-    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_one_problem("riemann_star", F_L, v_L, F_R, v_R, P0, gamma, rho0)
     check_int("iterations", iterations, 1)
     return _riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations)
 
@@ -169,10 +195,11 @@ def vacuum_forms(F_L, v_L, F_R, v_R, P0, gamma, rho0):
         rho0: as for ``riemann_star``.
 
     Returns:
-        ``v_R - v_L >= g(F_L) + g(F_R)``.
+        ``v_R - v_L >= g(F_L) + g(F_R)``, elementwise where the states are arrays (this test, unlike
+        ``riemann_star``, broadcasts).
 
     Raises:
-        ValueError: as ``riemann_star``.
+        ValueError: as ``riemann_star``, for any entry of an array.
     """
     _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     g = 2.0 / (gamma - 1.0)
@@ -202,7 +229,7 @@ def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
     Raises:
         ValueError: as ``riemann_star``.
     """
-    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_one_problem("riemann_waves", F_L, v_L, F_R, v_R, P0, gamma, rho0)
     return _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
 
 
@@ -231,6 +258,16 @@ def _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
     )
 
 
+def _check_xi(xi) -> None:
+    """Check the similarity variable: real, not NaN (``-inf`` and ``+inf`` are the outer states);
+    a tracer passes."""
+    check_real("xi", xi)
+    if is_concrete(xi):
+        arr = np.asarray(xi)
+        if np.any(np.isnan(arr)):
+            raise ValueError(f"xi must be a real number or +-inf, not NaN, got {show(arr)}")
+
+
 def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
     """The self-similar solution at ``xi = (X - X0) / t``: ``(F, v, D)``.
 
@@ -238,7 +275,8 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
     ``x(X, t) = x(X, 0) + v_L t + t D(xi)`` (while the waves have not reached the ends).
 
     Args:
-        xi: the similarity variable(s).
+        xi: the similarity variable(s), any shape; ``-inf`` and ``+inf`` give the left and right
+            states (``D`` its limit there), as at ``t = 0``.
         F_L: as for ``riemann_star``.
         v_L: as for ``riemann_star``.
         F_R: as for ``riemann_star``.
@@ -251,9 +289,12 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
         ``(F, v, D)`` at ``xi``.
 
     Raises:
-        ValueError: as ``riemann_star``.
+        ValueError: as ``riemann_star`` (the states are one number each: ``jax.vmap`` over this
+            function for several problems), or a concrete ``xi`` (any entry) is not a real number
+            or is NaN.
     """
-    _check_states(F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_xi(xi)
+    _check_one_problem("riemann_solution", F_L, v_L, F_R, v_R, P0, gamma, rho0)
     w = _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     a1, b1, a2, b2, F_s, v_s = w["a1"], w["b1"], w["a2"], w["b2"], w["F_star"], w["v_star"]
     K = jnp.sqrt(gamma * P0 / rho0)
@@ -301,7 +342,7 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
     (The rarefaction into vacuum of Toro, ch. 4, in Lagrangian form.)
 
     Args:
-        X: reference position(s).
+        X: reference position(s), in ``[0, L]`` (the body).
         t: time.
         L: the gas's initial length.
         P0: the gas's pressure at ``F = 1``.
@@ -313,12 +354,17 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
 
     Raises:
         ValueError: a concrete ``X`` (any entry) or ``t`` is not finite, or ``L``, ``P0``, ``rho0``
-            are not finite and > 0, or ``gamma`` is not finite and > 1 (tracers are not checked).
+            are not finite and > 0, or ``gamma`` is not finite and > 1, or a concrete ``X`` (any
+            entry) lies outside ``[0, L]`` (tracers are not checked).
     """
     check_finite("X", X)
     check_finite("t", t)
     check_positive("L", L)
     _check_gas(P0, gamma, rho0)
+    if is_concrete(X) and is_concrete(L):
+        arr, length = np.asarray(X), np.asarray(L)
+        if not np.all((arr >= 0) & (arr <= length)):
+            raise ValueError(f"X must lie in the body [0, L] = [0, {show(length)}], got {show(arr)}")
     c0 = jnp.sqrt(gamma * P0 / rho0)
     t_h = (L - X) / c0
     moving = t > t_h

@@ -76,6 +76,8 @@ density). The viscosity is off by default: without it ``gas_radial`` is the cons
 in 1D ``gas_slab``'s system.
 """
 
+from collections.abc import Iterable
+
 import diffrax
 import equinox as eqx
 import jax
@@ -84,6 +86,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._checks import (
+    brief,
     check_finite,
     check_greater,
     check_int,
@@ -140,14 +143,17 @@ def gas_slab(
         cells: Lagrangian cells of the reference (independent of the MPM resolution).
         rtol: diffrax's relative tolerance.
         atol: diffrax's absolute tolerance, relative to the scales of F, v and x.
-        max_steps: diffrax's step bound.
+        max_steps: diffrax's step bound (an integer >= 1).
 
     Returns:
         The ``SlabSolution``.
 
     Raises:
         ValueError: ``scene`` is not a ``GasSlab``; ``ts`` is not a non-empty 1-d sequence of finite,
-            non-decreasing times from ``>= 0``; or bad ``cells``, ``rtol``, ``atol`` or ``max_steps``.
+            non-decreasing times from ``>= 0``; bad ``cells``, ``rtol``, ``atol`` or ``max_steps``;
+            or the solve to ``ts[-1]`` needs more than ``max_steps`` steps (under ``jax.jit``,
+            ``jax.grad`` or ``jax.vmap`` that, and any other failure of the solver, is diffrax's
+            runtime error).
     """
     if not isinstance(scene, GasSlab):
         raise ValueError(f"scene must be a GasSlab (jm.GasSlab(...)), got {type(scene).__name__}")
@@ -188,10 +194,37 @@ def gas_slab(
         saveat=diffrax.SaveAt(ts=tau),
         stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
         max_steps=max_steps,
+        throw=False,
     )
+    sol = _succeeded(sol, max_steps, ts)
     F, _, xr = sol.ys
     X = (jnp.arange(cells, dtype=ts.dtype) + 0.5) * dX
     return SlabSolution(ts=ts, x_free=L + L * xr, F=F, X=X, stats=dict(sol.stats))
+
+
+def _succeeded(sol: diffrax.Solution, max_steps: int, ts: Array) -> diffrax.Solution:
+    """``sol`` once its solve succeeded.
+
+    Args:
+        sol: the solution of a ``diffeqsolve`` with ``throw=False``.
+        max_steps: the step bound it was given.
+        ts: the report times (the solve ran to ``ts[-1]``).
+
+    Returns:
+        ``sol``, carrying diffrax's runtime check of its result where that result is a tracer.
+
+    Raises:
+        ValueError: a concrete result says the solve stopped at ``max_steps`` steps.
+        EquinoxRuntimeError: a concrete result says the solve failed otherwise (diffrax's error).
+    """
+    result = sol.result
+    if all(is_concrete(leaf) for leaf in jax.tree_util.tree_leaves(result)):
+        if bool(result == diffrax.RESULTS.max_steps_reached):
+            end = f"ts[-1]={float(ts[-1])!r}" if is_concrete(ts) else "ts[-1]"
+            raise ValueError(
+                f"max_steps={max_steps} was too few: the solve to {end} needs more steps; raise max_steps"
+            )
+    return result.error_if(sol, jnp.invert(diffrax.is_okay(result)))
 
 
 def reference_convergence(scene, ts, cells=(100, 200, 400, 800), **kwargs) -> list[dict]:
@@ -201,14 +234,70 @@ def reference_convergence(scene, ts, cells=(100, 200, 400, 800), **kwargs) -> li
     Args:
         scene: the ``GasSlab``.
         ts: the times.
-        cells: the resolutions, coarse to fine (each twice the last for an order).
+        cells: two or more resolutions (integers >= 2), increasing; three or more, each twice the
+            last, for the orders.
         **kwargs: passed to ``gas_slab``.
 
     Returns:
         One row per resolution: ``cells``, ``x_free_max_diff`` and (between the first and the last)
         ``order``.
+
+    Raises:
+        ValueError: ``cells`` is not such a sequence; or as ``gas_slab``.
     """
+    cells = _check_resolutions(cells)
     return _surface_convergence(cells, [gas_slab(scene, ts, n, **kwargs).x_free for n in cells], "x_free")
+
+
+def _check_resolutions(cells) -> list[int]:
+    """Check the resolutions of a surface convergence study (``_surface_convergence``).
+
+    Args:
+        cells: the resolutions, as given.
+
+    Returns:
+        ``cells`` as a list of Python integers.
+
+    Raises:
+        ValueError: ``cells`` is not a sequence of two or more integers >= 2, increasing, or (three
+            or more) not each twice the last, which the observed order ``log2(d_i / d_{i+1})``
+            assumes.
+    """
+    cells = _resolutions(cells)
+    if len(cells) < 2:
+        raise ValueError(
+            f"cells must hold at least two resolutions, to compare against the finest, got {cells}"
+        )
+    for coarse, fine in zip(cells[:-1], cells[1:]):
+        if fine <= coarse:
+            raise ValueError(f"cells must be strictly increasing (coarse to fine), got {cells}")
+        if len(cells) > 2 and fine != 2 * coarse:
+            raise ValueError(
+                f"cells must each be twice the last for the observed order (log2 of successive differences), "
+                f"got {cells}"
+            )
+    return cells
+
+
+def _resolutions(cells) -> list[int]:
+    """``cells`` as a list of Python integers, each >= 2.
+
+    Args:
+        cells: the resolutions, as given.
+
+    Returns:
+        The list.
+
+    Raises:
+        ValueError: ``cells`` is not a sequence, or holds something that is not an integer >= 2.
+    """
+    if isinstance(cells, (str, bytes)) or not isinstance(cells, Iterable):
+        raise ValueError(f"cells must be a sequence of resolutions (integers >= 2), got {brief(cells)}")
+    cells = list(cells)
+    for n in cells:
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+            raise ValueError(f"cells must hold integers >= 2, got {brief(n)} in {brief(cells)}")
+    return [int(n) for n in cells]
 
 
 def _surface_convergence(cells, surfaces, name: str) -> list[dict]:
@@ -320,7 +409,7 @@ def gas_radial(
         cells: Lagrangian cells along the radius.
         rtol: diffrax's relative tolerance.
         atol: diffrax's absolute tolerance, relative to the scales of ``J``, ``v`` (``c0``).
-        max_steps: diffrax's step bound; a solve that needs more fails with diffrax's error.
+        max_steps: diffrax's step bound (an integer >= 1).
         viscosity: add the artificial viscosity ``Q`` of the module's docstring (static: the solve
             without it is the inviscid scheme, unchanged). Off by default; on for a reference of
             the profiles past the shock.
@@ -334,7 +423,9 @@ def gas_radial(
     Raises:
         ValueError: bad ``P0``, ``gamma``, ``p_atm``, ``rho0``, ``radius``, ``dim``, ``ts``,
             ``cells``, ``rtol``, ``atol``, ``max_steps``, ``viscosity``, ``q_quadratic`` or
-            ``q_linear``, named in the message.
+            ``q_linear``, named in the message; or the solve to ``ts[-1]`` needs more than
+            ``max_steps`` steps (under ``jax.jit``, ``jax.grad`` or ``jax.vmap`` that, and any other
+            failure of the solver, is diffrax's runtime error).
     """
     for name, value in (("P0", P0), ("gamma", gamma), ("p_atm", p_atm), ("rho0", rho0), ("radius", radius)):
         check_real(name, value)
@@ -390,7 +481,9 @@ def gas_radial(
         saveat=diffrax.SaveAt(ts=tau),
         stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
         max_steps=max_steps,
+        throw=False,
     )
+    sol = _succeeded(sol, max_steps, ts)
     J, w = sol.ys[:2]
     energy_unit = rho0 * c0**2 * radius**dim  # per unit solid angle
     dissipated = energy_unit * sol.ys[2] if viscosity else jnp.zeros_like(ts)
@@ -469,14 +562,19 @@ def radial_convergence(ts, cells=(100, 200, 400, 800), **kwargs) -> list[dict]:
 
     Args:
         ts: the times.
-        cells: the resolutions, coarse to fine (each twice the last for an order).
+        cells: two or more resolutions (integers >= 2), increasing; three or more, each twice the
+            last, for the orders.
         **kwargs: passed to ``gas_radial`` (``P0``, ``gamma``, ``p_atm``, ``rho0``, ``radius``,
             ``dim`` and any of its options).
 
     Returns:
         One row per resolution: ``cells``, ``r_free_max_diff`` and (between the first and the last)
         ``order``.
+
+    Raises:
+        ValueError: ``cells`` is not such a sequence; or as ``gas_radial``.
     """
+    cells = _check_resolutions(cells)
     return _surface_convergence(cells, [gas_radial(ts=ts, cells=n, **kwargs).r_free for n in cells], "r_free")
 
 
@@ -513,9 +611,10 @@ def radial_profile_convergence(
         ``log(d_i / d_{i+1}) / log(k)`` from this row's differences and the next row's.
 
     Raises:
-        ValueError: fewer than three resolutions, or one that is not a multiple of the last.
+        ValueError: ``cells`` is not a sequence of integers >= 2, holds fewer than three
+            resolutions, or one that is not a multiple of the last; or as ``gas_radial``.
     """
-    cells = [int(n) for n in cells]
+    cells = _resolutions(cells)
     if len(cells) < 3:
         raise ValueError(f"cells must hold at least three resolutions for an order, got {cells}")
     for coarse, fine in zip(cells[:-1], cells[1:]):

@@ -1,0 +1,190 @@
+"""Faults of the exact solutions (``jaxmpm.exact``) and of the diffrax references
+(``jaxmpm.reference``): each bad value is named, with what is allowed, in one line before anything is
+traced or solved; tracers pass unchecked; valid calls are unchanged."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmpm as jm
+from jaxmpm import exact, reference
+
+
+def _one_line(make, match):
+    with pytest.raises(ValueError, match=match) as info:
+        make()
+    assert "\n" not in str(info.value)
+    return str(info.value)
+
+
+STATES = (0.5, 0.0, 1.0, 0.0, 1.0, 1.4, 1.0)  # F_L, v_L, F_R, v_R, P0, gamma, rho0
+NAMES = ("F_L", "v_L", "F_R", "v_R", "P0", "gamma", "rho0")
+
+# ---------------------------------------------------------------- riemann_solution's xi
+
+
+@pytest.mark.parametrize("xi", [math.nan, np.float32("nan"), jnp.asarray([0.1, jnp.nan])])
+def test_riemann_solution_refuses_a_nan_xi(xi):
+    # was (2.0, 0.0, nan): F and v of the right state, D NaN
+    _one_line(lambda: exact.riemann_solution(xi, *STATES), r"^xi must be a real number or \+-inf, not NaN")
+
+
+@pytest.mark.parametrize("xi", ["a", None, 1j])
+def test_riemann_solution_refuses_an_xi_that_is_not_a_number(xi):
+    # "a" was a JAX TypeError about clip
+    _one_line(lambda: exact.riemann_solution(xi, *STATES), r"^xi must be a real number, got ")
+
+
+def test_riemann_solution_takes_infinite_xi_as_the_outer_states():
+    # xi = -inf, +inf: the data on either side (as the scene's exact solution asks for at t = 0)
+    F, v, D = exact.riemann_solution(jnp.asarray([-jnp.inf, jnp.inf]), 0.5, 0.3, 1.0, -0.2, 1.0, 1.4, 1.0)
+    np.testing.assert_array_equal(np.asarray(F), [0.5, 1.0])
+    np.testing.assert_array_equal(np.asarray(v), [0.3, -0.2])
+    assert float(D[0]) == 0.0
+    assert float(D[1]) == pytest.approx(-0.2 - 0.3, abs=1e-12)  # x(L) moves with v_R = v_L + D
+
+
+def test_riemann_solution_passes_a_traced_xi():
+    xi = jnp.linspace(-2.0, 2.0, 9)
+    F = jax.vmap(lambda z: exact.riemann_solution(z, *STATES)[0])(xi)
+    np.testing.assert_array_equal(np.asarray(F), np.asarray(exact.riemann_solution(xi, *STATES)[0]))
+    dF = jax.grad(lambda z: exact.riemann_solution(z, *STATES)[0])(0.0)
+    assert math.isfinite(float(dF))
+
+
+# ---------------------------------------------------------------- one Riemann problem at a time
+
+
+@pytest.mark.parametrize("index", range(7))
+def test_riemann_star_refuses_arrays_of_states_by_name(index):
+    # was "TypeError: Gradient only defined for scalar-output functions"
+    args = list(STATES)
+    args[index] = jnp.asarray([STATES[index], STATES[index]])
+    name = NAMES[index]
+    for fn in ("riemann_star", "riemann_waves"):
+        _one_line(
+            lambda: getattr(exact, fn)(*args),
+            rf"^{name} must be one number, got an array of shape \(2,\); to solve several Riemann "
+            rf"problems, jax\.vmap over {fn}$",
+        )
+    _one_line(
+        lambda: exact.riemann_solution(0.1, *args),
+        rf"^{name} must be one number, got an array of shape \(2,\).*jax\.vmap over riemann_solution$",
+    )
+
+
+def test_riemann_star_takes_zero_dimensional_arrays_and_vmaps():
+    one = exact.riemann_star(*[jnp.asarray(a) for a in STATES])
+    assert float(one[0]) == float(exact.riemann_star(*STATES)[0])
+    F_L = jnp.asarray([0.5, 2.0])
+    many = jax.vmap(lambda F: exact.riemann_star(F, *STATES[1:]))(F_L)
+    for i in range(2):
+        np.testing.assert_array_equal(
+            np.asarray([many[0][i], many[1][i]]),
+            np.asarray(exact.riemann_star(float(F_L[i]), *STATES[1:])),
+        )
+
+
+def test_vacuum_forms_still_broadcasts_over_arrays_of_states():
+    out = exact.vacuum_forms(0.5, jnp.asarray([0.0, -20.0]), 1.0, jnp.asarray([0.0, 20.0]), 1.0, 1.4, 1.0)
+    np.testing.assert_array_equal(np.asarray(out), [False, True])
+    _one_line(
+        lambda: exact.vacuum_forms(jnp.asarray([0.5, -1.0]), *STATES[1:]),
+        r"^F_L must be > 0, got \[ 0\.5 -1\. \]$",
+    )
+
+
+# ---------------------------------------------------------------- vacuum_expansion's X
+
+
+@pytest.mark.parametrize(
+    "X, shown",
+    [
+        (jnp.asarray([0.5, 1.5]), r"\[0\.5 1\.5\]"),  # was [0.5, nan]
+        (-0.1, r"-0\.1"),
+        (1.0 + 1e-12, r"1\.000000000001"),
+    ],
+)
+def test_vacuum_expansion_refuses_X_outside_the_body(X, shown):
+    _one_line(
+        lambda: exact.vacuum_expansion(X, 1e-3, 1.0, 1e5, 1.4, 1.0),
+        rf"^X must lie in the body \[0, L\] = \[0, 1\.0\], got {shown}$",
+    )
+
+
+def test_vacuum_expansion_takes_the_whole_body_and_passes_tracers():
+    X = jnp.asarray([0.0, 0.5, 1.0])
+    x, v, F = exact.vacuum_expansion(X, 1e-3, 1.0, 1e5, 1.4, 1.0)
+    assert float(x[0]) == 0.0 and float(v[1]) == 0.0 and math.isinf(float(F[2]))  # the front's F
+    # under vmap X is a tracer: unchecked (outside the body it is the caller's NaN)
+    xs = jax.vmap(lambda X: exact.vacuum_expansion(X, 1e-3, 1.0, 1e5, 1.4, 1.0)[0])(X)
+    np.testing.assert_array_equal(np.asarray(xs), np.asarray(x))
+
+
+# ---------------------------------------------------------------- reference: max_steps
+
+SLAB = dict(cells=4, ppc=1, pad=8)
+GAS = dict(P0=1e6, gamma=1.4, p_atm=1e5, rho0=1.0, radius=0.5)
+
+
+def test_gas_slab_names_max_steps_when_the_solve_needs_more():
+    # was diffrax's multi-screen EquinoxRuntimeError
+    _one_line(
+        lambda: reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3], cells=8, max_steps=1),
+        r"^max_steps=1 was too few: the solve to ts\[-1\]=0\.001 needs more steps; raise max_steps$",
+    )
+
+
+def test_gas_radial_names_max_steps_when_the_solve_needs_more():
+    _one_line(
+        lambda: reference.gas_radial(**GAS, dim=2, ts=[0.0, 1e-3], cells=8, max_steps=1),
+        r"^max_steps=1 was too few: the solve to ts\[-1\]=0\.001 needs more steps; raise max_steps$",
+    )
+
+
+# ---------------------------------------------------------------- reference: convergence resolutions
+
+
+@pytest.mark.parametrize(
+    "cells, match",
+    [
+        # () was an IndexError, (4, 4, 4) an order of NaN
+        ((), r"^cells must hold at least two resolutions, to compare against the finest, got \[\]$"),
+        ((8,), r"^cells must hold at least two resolutions"),
+        ((4, 4, 4), r"^cells must be strictly increasing \(coarse to fine\), got \[4, 4, 4\]$"),
+        ((16, 8), r"^cells must be strictly increasing"),
+        ((8, 12, 16), r"^cells must each be twice the last for the observed order"),
+        (("a", 8), r"^cells must hold integers >= 2, got 'a' in \['a', 8\]$"),
+        ((8.0, 16.0), r"^cells must hold integers >= 2, got 8\.0"),
+        ((1, 2), r"^cells must hold integers >= 2, got 1 in"),
+        ((True, 4), r"^cells must hold integers >= 2, got True"),
+        (8, r"^cells must be a sequence of resolutions \(integers >= 2\), got 8$"),
+        ("816", r"^cells must be a sequence of resolutions"),
+    ],
+)
+def test_surface_convergence_refuses_bad_resolutions_by_name(cells, match):
+    _one_line(lambda: reference.reference_convergence(jm.GasSlab(**SLAB), [1e-4], cells=cells), match)
+    _one_line(lambda: reference.radial_convergence([1e-4], cells=cells, **GAS, dim=2), match)
+
+
+def test_surface_convergence_takes_two_resolutions_of_any_ratio():
+    rows = reference.reference_convergence(jm.GasSlab(**SLAB), [1e-4], cells=(np.int64(6), 9))
+    assert [r["cells"] for r in rows] == [6, 9] and all("order" not in r for r in rows)
+    assert rows[1]["x_free_max_diff"] == 0.0 and rows[0]["x_free_max_diff"] > 0.0
+
+
+@pytest.mark.parametrize(
+    "cells, match",
+    [
+        (("a",), r"^cells must hold integers >= 2, got 'a' in \['a'\]$"),  # was "invalid literal for int()"
+        ((8, 16.5, 32), r"^cells must hold integers >= 2, got 16\.5"),
+        (None, r"^cells must be a sequence of resolutions"),
+        ((8, 16), r"^cells must hold at least three resolutions"),
+        ((8, 8, 16), r"^cells must each be an integer multiple of the last"),
+    ],
+)
+def test_radial_profile_convergence_refuses_bad_resolutions_by_name(cells, match):
+    _one_line(lambda: reference.radial_profile_convergence(**GAS, dim=2, ts=[1e-4], cells=cells), match)
