@@ -1,5 +1,6 @@
 """Small helpers used across modules."""
 
+import dataclasses
 import functools
 import operator
 
@@ -9,16 +10,17 @@ import numpy as np
 from jax.experimental import multihost_utils
 from jaxtyping import Array, Float
 
-from ._checks import check_real
+from ._checks import check_real, check_scalar
 
 
 def as_float(x: object) -> Float[Array, ""]:
     """A continuous parameter as a 0-d array of the default float dtype (float64 once x64 is enabled):
     the converter of every parameter field of scenes, materials and runs.
 
-    It takes any object and checks it itself (a tracer passes unchanged in value), so that a scene
-    can name the parameter first: ``AbstractScene`` checks its fields by name before they are
-    converted ("beta must be a real number, got 'abc'").
+    It takes any object and checks it itself (a tracer passes unchanged in value), so that a module
+    can name the parameter first: scenes, materials and viscosities check their ``as_float`` fields
+    by name before they are converted (``check_real_fields``: "beta must be a real number, got
+    'abc'"); this message, without a name, is for a module that does not.
 
     Args:
         x: a real number (``Real[ArrayLike, ""]``), or a 0-d array (a tracer under ``jax.grad`` or
@@ -34,21 +36,46 @@ def as_float(x: object) -> Float[Array, ""]:
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
-def static_fraction(x: object) -> float:
-    """A static parameter ``x0`` (where two regions meet, a fraction of a length) as a Python float.
+def check_real_fields(module: object, batch: str | None = None) -> None:
+    """Name the ``as_float`` field of ``module`` that is not a number, before the converters run
+    (``as_float`` cannot name it): called by the ``__post_init__`` of scenes, materials and
+    viscosities, which runs on the values as given. Tracers pass.
 
     Args:
-        x: a real number.
+        module: a dataclass (an ``eqx.Module``) whose fields hold the values as given.
+        batch: ``None`` to accept an array of any shape; else each field must be one number, and a
+            field with a shape is refused with this appended (how to run several values instead).
+
+    Raises:
+        ValueError: a field is not a real number ("P0 must be a real number, got None"), or, with
+            ``batch``, is an array with a shape ("P0 must be one number, got an array of shape (2,)").
+    """
+    for f in dataclasses.fields(module):
+        if f.metadata.get("converter") is as_float:
+            value = getattr(module, f.name)
+            if type(value) is float or type(value) is int:
+                continue  # the common case, one number: skip the general checks (a few us each)
+            check_real(f.name, value)
+            if batch is not None:
+                check_scalar(f.name, value, batch)
+
+
+def static_fraction(x: object, name: str = "x0") -> float:
+    """A static parameter (where two regions meet, a fraction of a length) as a Python float.
+
+    Args:
+        x: one real number.
+        name: the parameter's name, for the message.
 
     Returns:
         ``float(x)``.
 
     Raises:
-        ValueError: ``x`` is not a real number ("x0 must be a real number, got 'abc'").
+        ValueError: ``x`` is not a real number ("x0 must be a real number, got 'abc'") or is an array
+            with a shape (a static parameter is one number).
     """
-    from ._checks import check_real
-
-    check_real("x0", x)
+    check_real(name, x)
+    check_scalar(name, x, " (a static parameter: it fixes the regions' particles)")
     return float(x)
 
 

@@ -20,6 +20,8 @@ References: B. M. Dobratz and P. C. Crawford, "LLNL Explosives Handbook", UCRL-5
 W. Fickett and W. C. Davis, "Detonation: Theory and Experiment" (1979), ch. 2.
 """
 
+import math
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -397,15 +399,29 @@ def cj_energy(products: AbstractEOS, rho0, D, p0=0.0, iterations: int = 8) -> Fl
         iterations: Newton iterations before the differentiable one (static).
 
     Returns:
-        ``e0`` (for JWL, ``E0 = rho0 e0`` per reference volume). NaN where the EOS has no CJ point.
+        ``e0`` (for JWL, ``E0 = rho0 e0`` per reference volume; negative for a ``D`` below the one the
+        products imply at ``e0 = 0``). NaN under a transformation (traced values) where no ``e0`` gives
+        a CJ state of speed ``D``.
 
     Raises:
-        ValueError: ``D`` or ``rho0`` is not finite or not > 0 (concrete values).
+        ValueError: ``D`` or ``rho0`` is not finite or not > 0, or (concrete values) no ``e0`` gives
+            the products a CJ state of speed ``D``: the iteration ends where the CJ state's speed
+            misses ``D`` (by more than the square root of the float dtype's epsilon, relative), its
+            ``J_CJ`` is not in ``(0, 1)``, or there is none (a ``D`` below the slowest detonation the
+            products have, or a barotropic EOS).
     """
     D, rho0, p0 = as_float(D), as_float(rho0), as_float(p0)
     check_positive("D", D)
     check_positive("rho0", rho0)
-    return _cj_energy(products, rho0, D, p0, iterations)
+    e0 = _cj_energy(products, rho0, D, p0, iterations)
+    if is_concrete(e0) and not math.isfinite(float(e0)):
+        raise ValueError(
+            f"D={float(D)!r} is the CJ detonation speed of these products at no detonation energy e0 "
+            f"(rho0={float(rho0)!r}): Newton's iteration on e0 ends at a CJ state of another speed, or "
+            "none; D must be at least the slowest detonation the products have, and their CJ speed "
+            "must depend on e0 (not a barotropic EOS)"
+        )
+    return e0
 
 
 @eqx.filter_jit
@@ -422,7 +438,14 @@ def _cj_energy(products, rho0, D, p0, iterations):
     e0, _ = jax.lax.scan(newton, e0, None, length=iterations)
     e0 = jax.lax.stop_gradient(e0)
     slope = jax.lax.stop_gradient(jax.jvp(residual, (e0,), (jnp.ones_like(e0),))[1])
-    return e0 - residual(e0) / slope
+    cj = _cj_solve(products, rho0, e0, p0)
+    r = jnp.square(cj["D"]) / jnp.square(D) - 1.0
+    # The iterate is a root where its CJ state has speed D (r ~ 2 x the relative miss) and J_CJ in
+    # (0, 1); elsewhere (D below every CJ speed of the products) the iteration wanders off and its
+    # end is no detonation energy.
+    miss, J = jax.lax.stop_gradient((r, cj["J_CJ"]))
+    ok = (jnp.abs(miss) <= jnp.sqrt(jnp.finfo(miss.dtype).eps)) & (J > 0) & (J < 1)
+    return jnp.where(ok, e0 - r / slope, jnp.nan)
 
 
 EXPLOSIVES: dict[str, dict[str, float]] = {

@@ -7,6 +7,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float, Int
 
+from ._checks import check_int, check_positive
 from ._util import lattice
 
 
@@ -19,9 +20,9 @@ class Grid(eqx.Module):
 
     Attributes:
         x_min: position of node 0, shape ``(dim,)``.
-        h: node spacing (a scalar array; the same along every axis).
-        n_nodes: total number of nodes (static).
-        shape: nodes along each axis (static); ``None`` for a 1D grid of ``n_nodes`` nodes.
+        h: node spacing, > 0 (a scalar array; the same along every axis).
+        n_nodes: total number of nodes, >= 2 (static).
+        shape: nodes along each axis, each >= 2 (static); ``None`` for a 1D grid of ``n_nodes`` nodes.
     """
 
     x_min: Float[Array, " dim"]
@@ -30,6 +31,18 @@ class Grid(eqx.Module):
     shape: tuple[int, ...] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
+        """Check the node counts and the spacing (a traced ``h``, as inside a run, is not checked).
+
+        Raises:
+            ValueError: ``n_nodes`` or an entry of ``shape`` is not an integer >= 2 (a grid has at
+                least one cell along each axis); ``h`` is not finite and > 0; ``shape`` does not
+                match ``x_min`` and ``n_nodes``.
+        """
+        check_int("n_nodes", self.n_nodes, 2)
+        if self.shape is not None:
+            for a, n in enumerate(self.shape):
+                check_int(f"shape[{a}]", n, 2)
+        check_positive("h", self.h)
         if self.shape is not None and (
             len(self.shape) != self.x_min.shape[0] or math.prod(self.shape) != self.n_nodes
         ):

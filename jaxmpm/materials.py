@@ -12,11 +12,19 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_greater, check_less, check_nonnegative, check_positive
-from ._util import as_float, contract, det
+from ._util import as_float, check_real_fields, contract, det
 
 
 class AbstractMaterial(eqx.Module):
     """A hyperelastic material: stress, stored energy and wave speed as functions of ``F``."""
+
+    def __post_init__(self):
+        """Name a parameter that is not a number before the converters run (``check_real_fields``).
+
+        Raises:
+            ValueError: a parameter is not a real number ("P0 must be a real number, got None").
+        """
+        check_real_fields(self)
 
     @abc.abstractmethod
     def stress(self, F: Float[Array, "dim dim"]) -> Float[Array, "dim dim"]:
@@ -262,6 +270,14 @@ class AbstractEOS(eqx.Module):
     ``front_speed``; one without internal variables or a front of its own derives from
     ``AbstractStatelessEOS`` and implements ``pressure_terms`` alone.
     """
+
+    def __post_init__(self):
+        """Name a parameter that is not a number before the converters run (``check_real_fields``).
+
+        Raises:
+            ValueError: a parameter is not a real number ("gamma must be a real number, got None").
+        """
+        check_real_fields(self)
 
     @abc.abstractmethod
     def pressure_terms(

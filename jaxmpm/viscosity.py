@@ -27,8 +27,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._checks import check_nonnegative
-from ._util import as_float, det
+from ._checks import check_nonnegative, check_real
+from ._util import as_float, check_real_fields, det
 from .materials import AbstractMaterial
 
 
@@ -49,6 +49,17 @@ class ArtificialViscosity(eqx.Module):
     c_quad: Float[Array, ""] = eqx.field(converter=as_float, default=2.0)
     c_lin: Float[Array, ""] = eqx.field(converter=as_float, default=0.2)
     c_shear: Float[Array, ""] | None = eqx.field(converter=_optional_float, default=None)
+
+    def __post_init__(self):
+        """Name a coefficient that is not a number before the converters run (``check_real_fields``).
+
+        Raises:
+            ValueError: a coefficient is not a real number ("c_lin must be a real number, got 'x'"),
+                or ``c_shear`` is neither ``None`` nor one.
+        """
+        check_real_fields(self)
+        if self.c_shear is not None:
+            check_real("c_shear", self.c_shear)
 
     def __check_init__(self):
         check_nonnegative("c_quad", self.c_quad)

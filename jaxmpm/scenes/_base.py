@@ -9,12 +9,15 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_int, check_positive, check_real
-from .._util import as_float
+from .._checks import check_int, check_positive
+from .._util import check_real_fields
 from ..grid import Grid
 from ..materials import AbstractEOS, AbstractMaterial
 from ..particles import Body, seed_box
 from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
+
+_SEVERAL = ": to run several values, jax.vmap over simulate (building the scene in it) or use jaxmpm.ensemble"
+"""How to run several values of a parameter, for the message that refuses an array of them."""
 
 
 class AbstractScene(eqx.Module):
@@ -22,10 +25,11 @@ class AbstractScene(eqx.Module):
 
     Concrete scenes are final: they implement the abstract members below and nothing else.
 
-    Continuous parameters are float array fields (differentiable, vmappable); ``cells``, ``ppc`` and
-    ``pad`` are static. Optional physics is declared by Python structure, not by flags, so that the
-    compiled step holds only what the scene needs. Every scene declares each of these, ``None``
-    where it has no such part:
+    Continuous parameters are float array fields (differentiable, vmappable), each one number where
+    the scene is built (several values are for ``jax.vmap``, whose tracers pass); ``cells``, ``ppc``
+    and ``pad`` are static integers >= 1. Optional physics is declared by Python structure, not by
+    flags, so that the compiled step holds only what the scene needs. Every scene declares each of
+    these, ``None`` where it has no such part:
 
     - ``body_force``: ``None`` or a method ``(X, t) -> b`` (Lagrangian, per unit mass);
     - ``traction``: ``None`` or a method ``t -> faces`` giving one entry per face, ``(low, high)`` of
@@ -78,16 +82,21 @@ class AbstractScene(eqx.Module):
     pad: eqx.AbstractVar[int]
 
     def __post_init__(self):
-        # Before the converters (which cannot name the field) and every __check_init__: a value that
-        # is not a number at all is named here ("beta must be a real number, got 'abc'").
-        for f in dataclasses.fields(self):
-            if f.metadata.get("converter") is as_float:
-                check_real(f.name, getattr(self, f.name))
+        """Check what every later check relies on, on the values as given: before the converters
+        (which cannot name the field) and before every ``__check_init__`` (a subclass's runs first and
+        computes with the parameters).
+
+        Raises:
+            ValueError: a continuous parameter is not a real number ("beta must be a real number, got
+                'abc'") or is an array with a shape (one scene is one number per parameter: several
+                values are for ``jax.vmap``, whose tracers pass); ``cells``, ``ppc`` or ``pad`` is not
+                an integer >= 1.
+        """
+        check_real_fields(self, _SEVERAL)
+        for name in ("cells", "ppc", "pad"):
+            check_int(name, getattr(self, name), 1)
 
     def __check_init__(self):
-        check_int("cells", self.cells, 1)
-        check_int("ppc", self.ppc, 1)
-        check_int("pad", self.pad, 1)
         if (
             isinstance(self.dim, bool)
             or not isinstance(self.dim, numbers.Integral)

@@ -6,8 +6,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_greater, check_positive, check_real
-from .._util import as_float
+from .._checks import check_finite, check_greater, check_positive
+from .._util import as_float, static_fraction
 from ..explosives import BURNS, EXPLOSIVES, JWL, JWLIsentrope, ProgrammedBurn, cj_energy, cj_state
 from ..geometry import Ball, Box
 from ..materials import MIE_GRUNEISEN, STRENGTH, ElasticPlastic, MieGruneisen
@@ -58,8 +58,7 @@ GURNEY_EXPLOSIVES = EXPLOSIVE_NAMES + ("jwl",)
 
 def _fraction(x: object) -> float:
     """``split`` as a Python float (a static parameter: it fixes which particles are the charge's)."""
-    check_real("split", x)
-    return float(x)
+    return static_fraction(x, "split")
 
 
 class AbstractGurney(AbstractScene):
@@ -78,7 +77,8 @@ class AbstractGurney(AbstractScene):
         sqrt_2E: the explosive's Gurney velocity (m/s), for ``gurney_velocity``.
         D, gamma, rho0: the gamma-law products (with ``explosive="gamma-law"``; ``D`` and ``rho0`` also
             with ``"jwl"``).
-        A, B, R1, R2, w: the JWL constants (with ``explosive="jwl"``; Pa for ``A`` and ``B``).
+        A, B, R1, R2, w: the JWL constants (with ``explosive="jwl"``; Pa for ``A`` and ``B``): ``A``
+            and ``B`` finite, ``R1``, ``R2`` and ``w`` > 0, checked whichever explosive runs.
         burn_width: the burn's length in particle sizes, >= 1.
         explosive: as for ``Detonation``, or ``"jwl"`` (static).
         products, burn: as for ``Detonation`` (static).
@@ -105,6 +105,14 @@ class AbstractGurney(AbstractScene):
     strength: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
+        """Check the explosive's and the metal's parameters, each by its own name.
+
+        Raises:
+            ValueError: a static choice is not one of those allowed; ``sqrt_2E`` or ``D`` is not finite
+                and > 0; ``gamma`` is not finite and > 1; ``burn_width`` is below 1; ``A`` or ``B`` is
+                not finite, or ``R1``, ``R2`` or ``w`` not finite and > 0 (whichever explosive runs).
+                Tracers are not checked.
+        """
         if not isinstance(self.strength, bool):
             raise ValueError(f"strength must be true or false, got {self.strength!r}")
         for name, value, allowed in (
@@ -119,8 +127,13 @@ class AbstractGurney(AbstractScene):
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
         check_greater("burn_width", self.burn_width - 1.0, -1e-12)
-        if self.explosive == "jwl":
-            JWL(self.rho0, self.A, self.B, self.R1, self.R2, self.w)  # its own checks of the constants
+        # The JWL constants are checked whichever explosive runs (as JWL checks them: A and B finite,
+        # R1, R2 and w > 0): a bad value is refused, not kept in the run's parameters unused.
+        check_finite("A", self.A)
+        check_finite("B", self.B)
+        check_positive("R1", self.R1)
+        check_positive("R2", self.R2)
+        check_positive("w", self.w)
 
     def _metal(self) -> tuple[MieGruneisen | ElasticPlastic, Float[Array, ""]]:
         row = MIE_GRUNEISEN[self.metal]
