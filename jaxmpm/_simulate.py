@@ -14,7 +14,7 @@ from jaxtyping import Array, Float, Int
 
 from . import _memory
 from . import status as st_bits
-from ._checks import check_int, check_keywords, check_positive, check_scalar, is_concrete
+from ._checks import brief, check_int, check_keywords, check_positive, check_scalar, is_concrete
 from ._step import (
     Model,
     Setup,
@@ -23,10 +23,10 @@ from ._step import (
     check_dt,
     check_parts,
     check_structure,
-    initial_state,
     setup,
     shard_particles,
     stable_dt,
+    start_state,
     take_step,
 )
 from ._util import as_float, det, host
@@ -40,6 +40,9 @@ STATE_FIELDS = ("x", "v", "F", "sigma", "C", "corners", "x_traction", "e", "inte
 """The ``State`` fields a ``SaveAt`` may name: the per-particle (and per-corner) arrays (``internal``
 is saved as one entry ``internal.<variable>`` per internal variable)."""
 
+
+DEFAULT_CFL = 0.5
+"""The Courant number of a run to ``t_end`` given no ``cfl``."""
 
 MAX_STEP_COUNT = 2**31 - 1
 """The most steps one run may take: ``State.step`` is a 32-bit integer."""
@@ -57,7 +60,11 @@ class SaveAt(eqx.Module):
 
     Attributes:
         every: save every ``every`` steps, or ``None`` to keep no history (static).
-        fields: names of ``State`` fields to save (static).
+        fields: names of ``State`` fields to save, at least one (static).
+
+    Raises:
+        ValueError: ``every`` is not ``None`` or an integer >= 1, or ``fields`` is not a non-empty
+            tuple (or list) of names among ``STATE_FIELDS``.
     """
 
     every: int | None = eqx.field(static=True, default=None)
@@ -73,6 +80,11 @@ class SaveAt(eqx.Module):
         unknown = [f for f in self.fields if f not in STATE_FIELDS]
         if unknown:
             raise ValueError(f"SaveAt.fields must be among {STATE_FIELDS}, got {unknown}")
+        if not self.fields:
+            raise ValueError(
+                f"SaveAt.fields must name at least one field among {STATE_FIELDS}, got an empty "
+                "tuple (to keep no history, leave every=None)"
+            )
 
 
 class Solution(eqx.Module):
@@ -173,9 +185,27 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
         )
     check_int("artificial_cells", artificial_cells, 0)
     check_structure(scene, int(artificial_cells))
-    if not isinstance(checkpoint, bool):
-        check_int("checkpoint", checkpoint, 1)
+    if not isinstance(checkpoint, bool) and (not isinstance(checkpoint, int | np.integer) or checkpoint < 1):
+        raise ValueError(
+            "checkpoint must be True (blocks of ceil(sqrt(steps / 8)) steps), False (no "
+            f"checkpointing) or an integer >= 1 (the block length), got {brief(checkpoint)}"
+        )
     check_cfl_limit(cfl_limit)
+
+
+def _refuse_to_end_options(cfl, max_steps) -> None:
+    """Refuse ``cfl`` and ``max_steps`` given to a run of fixed steps, which they do not apply to."""
+    if max_steps is not None:
+        raise ValueError(
+            f"max_steps (got {brief(max_steps)}) is the bound of a run to an end time (t_end=..., with "
+            "cfl); a run of fixed steps (dt and steps) takes exactly steps steps: leave max_steps out"
+        )
+    if cfl is not None:
+        raise ValueError(
+            f"cfl (got {brief(cfl)}) sets the step of a run to an end time (t_end=..., with max_steps); "
+            "a run of fixed steps (dt and steps) steps by dt: leave cfl out (cfl_limit sets each "
+            "step's stability check)"
+        )
 
 
 def as_devices(devices) -> tuple[jax.Device, ...] | None:
@@ -373,7 +403,7 @@ def run_scan(
     n_particles = s.body.X.shape[0]
     if model.devices is not None:
         s = eqx.tree_at(lambda z: z.body, s, shard_particles(model, s.body, n_particles))
-    state0 = shard_particles(model, initial_state(model, s), n_particles)
+    state0 = shard_particles(model, start_state(model, s), n_particles)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
     if isinstance(dt, ToEnd):
         state = finish_to_end(state, dt)
@@ -489,7 +519,7 @@ def prepare(
     dt=None,
     steps: int | None = None,
     t_end=None,
-    cfl=0.5,
+    cfl=None,
     max_steps: int | None = None,
     transfer: AbstractTransfer | None = None,
     artificial_cells: int = 0,
@@ -512,8 +542,9 @@ def prepare(
         ``steps`` is ``max_steps``); ``saveat`` the default ``SaveAt()`` when none was given.
 
     Raises:
-        ValueError: bad input, or a run too large for the memory of the device (estimated from
-            its sizes, before anything is allocated).
+        ValueError: bad input (``cfl`` or ``max_steps`` with a run of fixed steps among it), or a
+            run too large for the memory of the device (estimated from its sizes, before anything
+            is allocated).
     """
     transfer = FLIP() if transfer is None else transfer
     saveat = SaveAt() if saveat is None else saveat
@@ -526,12 +557,15 @@ def prepare(
             raise ValueError("give either dt and steps (fixed steps) or t_end, cfl and max_steps, not both")
         if max_steps is None:
             raise ValueError("max_steps (an integer >= 1, the bound of the scan) is required with t_end")
+        cfl = DEFAULT_CFL if cfl is None else cfl
         for name, value in (("t_end", t_end), ("cfl", cfl)):
             check_positive(name, value)
             check_scalar(name, value, _SEVERAL)
         dt, steps = ToEnd(t_end=t_end, cfl=cfl), max_steps
     elif dt is None or steps is None:
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
+    else:
+        _refuse_to_end_options(cfl=cfl, max_steps=max_steps)
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
     if isinstance(dt, ToEnd) and cfl_limit is not None and is_concrete(cfl) and float(cfl) > cfl_limit:
         raise ValueError(
@@ -562,7 +596,7 @@ def simulate(
     dt=None,
     steps: int | None = None,
     t_end=None,
-    cfl=0.5,
+    cfl=None,
     max_steps: int | None = None,
     transfer: AbstractTransfer | None = None,
     artificial_cells: int = 0,
@@ -587,10 +621,12 @@ def simulate(
             ``INTERPOLATORS``).
         dt: time step (> 0), with ``steps``, the number of steps (>= 0).
         t_end: instead of ``dt`` and ``steps``, run to this time with the CFL-limited step
-            ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (default ``cfl = 0.5``) in a scan of
-            ``max_steps`` steps (required), the steps after ``t_end`` masked. A run that needs more
-            steps stops at ``max_steps`` with the status ``MAX_STEPS``. Differentiable in ``t_end``,
-            ``cfl`` and the scene's parameters (the step count is piecewise constant in them).
+            ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (``cfl``: default, or ``None``,
+            0.5) in a scan of ``max_steps`` steps (required), the steps after ``t_end`` masked. A run
+            that needs more steps stops at ``max_steps`` with the status ``MAX_STEPS``.
+            Differentiable in ``t_end``, ``cfl`` and the scene's parameters (the step count is
+            piecewise constant in them). ``cfl`` and ``max_steps`` belong to such a run alone: a run
+            of fixed steps (``dt``, ``steps``) refuses them.
         transfer: ``FLIP()`` (default), ``PIC()`` or ``APIC()``.
         artificial_cells: layers of artificial cells at each free end (``jaxmpm.boundaries``).
         saveat: what to keep besides the final state (default: nothing). With ``t_end``, the saved
@@ -611,7 +647,9 @@ def simulate(
         The ``Solution``.
 
     Raises:
-        ValueError: bad input, before anything is traced.
+        ValueError: bad input, before anything is traced: among others a scene class for a scene
+            object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, or a ``checkpoint`` that is
+            not ``True``, ``False`` or an integer >= 1.
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
     model, dt_arr, n, saveat = prepare(

@@ -16,6 +16,7 @@ so the compiled step holds only what the scene and the run declared.
 import functools
 import math
 import operator
+import weakref
 from typing import NamedTuple
 
 import equinox as eqx
@@ -35,7 +36,7 @@ from .interpolators._transfer import any_axis, gradient_forces, points_stencil, 
 from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
 from .particles import Body, State
 from .regions import Layout, Region
-from .scenes import AbstractScene
+from .scenes import SCENES, AbstractScene
 from .transfers import TRANSFERS, AbstractTransfer
 from .viscosity import ArtificialViscosity
 
@@ -75,34 +76,89 @@ def check_parts(scene, interpolator, transfer, viscosity) -> None:
 
     Raises:
         ValueError: one of them is not what it must be (checked in the order viscosity, scene,
-            interpolator, transfer).
+            interpolator, transfer); a class given for an object is told to call it
+            (``jm.GasExpansion()``), a scene's registry name the call that makes it
+            (``check_scene``).
     """
     if viscosity is not None and not isinstance(viscosity, ArtificialViscosity):
-        raise ValueError(f"viscosity must be None or an ArtificialViscosity, got {brief(viscosity)}")
-    if not isinstance(scene, AbstractScene):
-        raise ValueError(f"scene must be a jaxmpm scene, got {type(scene).__name__}")
+        raise ValueError(
+            f"viscosity must be None or an ArtificialViscosity, got "
+            f"{brief(viscosity)}{_class_hint(viscosity, ArtificialViscosity)}"
+        )
+    check_scene(scene)
     check_interpolator(interpolator)
     if not isinstance(transfer, AbstractTransfer):
         raise ValueError(
-            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got {brief(transfer)}"
+            f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got "
+            f"{brief(transfer)}{_class_hint(transfer, AbstractTransfer)}"
         )
 
 
+def check_scene(scene, what: str = "scene") -> None:
+    """Check that ``scene`` is a jaxmpm scene object (not its class, not a registry name).
+
+    Args:
+        scene: the value given.
+        what: the parameter's name, for the message.
+
+    Raises:
+        ValueError: ``scene`` is not an ``AbstractScene``; a scene class is told to call it
+            (``jm.GasExpansion()``), a registry name the call that makes the scene
+            (``jm.SCENES['gas-expansion']()``).
+    """
+    if isinstance(scene, AbstractScene):
+        return
+    if isinstance(scene, type) and issubclass(scene, AbstractScene):
+        raise ValueError(
+            f"{what} must be a jaxmpm scene object, got the class {scene.__name__}: call it, "
+            f"{_spelled(scene)}() (with its parameters)"
+        )
+    if isinstance(scene, str) and scene in SCENES:
+        raise ValueError(
+            f"{what} must be a jaxmpm scene object, got the name {scene!r}: "
+            f"jm.SCENES[{scene!r}]() makes that scene"
+        )
+    raise ValueError(
+        f"{what} must be a jaxmpm scene object such as jm.GasExpansion() (SCENES: {', '.join(SCENES)}), "
+        f"got {brief(scene)}"
+    )
+
+
+def _spelled(cls: type) -> str:
+    """How a user writes the class ``cls``: ``jm.GasExpansion`` where jaxmpm exports it under that
+    name, else its module path."""
+    import jaxmpm  # at call time: jaxmpm imports this module
+
+    if getattr(jaxmpm, cls.__name__, None) is cls:
+        return f"jm.{cls.__name__}"
+    return f"{cls.__module__}.{cls.__name__}"
+
+
+def _class_hint(value, base: type) -> str:
+    """``": it is the class, call it: jm.SPQ()"`` for a subclass of ``base`` given where an object
+    is needed ("" for anything else)."""
+    if isinstance(value, type) and issubclass(value, base):
+        return f": it is the class, call it: {_spelled(value)}()"
+    return ""
+
+
 def check_interpolator(interpolator) -> None:
-    """Check that ``interpolator`` is a jaxmpm interpolator (an object, not a registry name).
+    """Check that ``interpolator`` is a jaxmpm interpolator (an object, not its class nor a registry
+    name).
 
     Args:
         interpolator: the value given.
 
     Raises:
-        ValueError: it is not an ``AbstractInterpolator``; a registry name such as ``"mpq"`` is told
-            the object to pass (``jm.MPQ()``).
+        ValueError: it is not an ``AbstractInterpolator``; a registry name such as ``"mpq"`` or a
+            class such as ``jm.MPQ`` is told the object to pass (``jm.MPQ()``).
     """
     if isinstance(interpolator, AbstractInterpolator):
         return
     hint = ""
     if isinstance(interpolator, str) and interpolator in INTERPOLATORS:
         hint = f": pass {_made_by(INTERPOLATORS[interpolator])}"
+    hint = hint or _class_hint(interpolator, AbstractInterpolator)
     raise ValueError(
         "interpolator must be a jaxmpm interpolator such as jm.CPDI() "
         f"(INTERPOLATORS: {', '.join(INTERPOLATORS)}), got {brief(interpolator)}{hint}"
@@ -486,6 +542,25 @@ def initial_state(model: Model, setup: Setup) -> State:
 
     Returns:
         The ``State``.
+
+    Raises:
+        ValueError: ``setup`` is not a ``Setup`` of ``model`` as far as its shapes tell (another
+            run's: another particle count, dimension or grid; ``check_belongs``).
+    """
+    check_belongs(model, setup)
+    return start_state(model, setup)
+
+
+def start_state(model: Model, setup: Setup) -> State:
+    """``initial_state`` without the check that ``setup`` belongs to ``model`` (the drivers', which
+    derive ``setup`` from ``model`` themselves, also inside a trace).
+
+    Args:
+        model: the run.
+        setup: ``setup(model)``.
+
+    Returns:
+        The ``State`` at ``t = 0``.
     """
     scene, body = model.scene, setup.body
     n, dim = body.X.shape
@@ -535,6 +610,138 @@ def initial_state(model: Model, setup: Setup) -> State:
         fail_step=jnp.where(status != 0, 0, -1).astype(jnp.int32),
         fail_particle=particle,
     )
+
+
+_EXPECTED: dict = {}
+"""Model structure (tree structure, array shapes and dtypes, other leaves) to the shapes of its
+``Setup`` and ``State`` (``_expected``), so that a loop of ``step`` derives them once."""
+
+_EXPECTED_MOST = 64
+
+_LAST_CHECKED: list = [None, None, None]
+"""Weak references to the last model and setup that ``check_belongs`` passed, and their expected
+shapes: a loop of ``step`` with the same two objects checks only its state."""
+
+
+def _shapes(tree) -> tuple:
+    """``tree``'s structure and the shapes of its leaves, for a quick comparison (the structure of a
+    ``State``; a ``Setup``'s holds static fields made anew by every ``setup``, so only its shapes)."""
+    leaves, treedef = jax.tree.flatten(tree)
+    return treedef, tuple(tuple(a.shape) if hasattr(a, "shape") else np.shape(a) for a in leaves)
+
+
+def _paths(tree) -> dict:
+    """``tree``'s leaves as ``keystr`` path (``".body.X"``) to shape."""
+    flat = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return {jax.tree_util.keystr(p): tuple(a.shape) if hasattr(a, "shape") else np.shape(a) for p, a in flat}
+
+
+def _model_key(model: Model):
+    """What the shapes of ``model``'s setup and state depend on, or ``None`` where it cannot be
+    hashed (then they are derived on every call)."""
+    leaves, treedef = jax.tree.flatten(model)
+    key = (treedef, tuple((a.shape, str(a.dtype)) if eqx.is_array(a) else a for a in leaves))
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
+
+
+def _expected(model: Model) -> tuple:
+    """``model``'s ``Setup`` and initial ``State`` as shapes (``jax.eval_shape``, nothing computed),
+    with their ``_shapes``."""
+    key = _model_key(model)
+    if key is not None and key in _EXPECTED:
+        return _EXPECTED[key]
+    abstract = eqx.filter_eval_shape(setup, model)
+    state = eqx.filter_eval_shape(start_state, model, abstract)
+    out = (abstract, _shapes(abstract), state, _shapes(state))
+    if key is not None:
+        if len(_EXPECTED) >= _EXPECTED_MOST:
+            del _EXPECTED[next(iter(_EXPECTED))]
+        _EXPECTED[key] = out
+    return out
+
+
+def _mismatch(name: str, given, given_shapes: tuple, expected, expected_shapes: tuple) -> str | None:
+    """The first entry of ``given`` whose shape differs from ``expected``'s, or that one of them
+    lacks, in words (``None``: the shapes agree). ``given_shapes`` and ``expected_shapes`` are their
+    ``_shapes``; ``name`` starts the entry's path (``"state"``)."""
+    if given_shapes[1] == expected_shapes[1]:
+        return None
+    have, want = _paths(given), _paths(expected)
+    for path, shape in want.items():
+        if path not in have:
+            return f"{name}{path} is None, should have shape {shape}"
+        if have[path] != shape:
+            return f"{name}{path} has shape {have[path]}, should be {shape}"
+    for path, shape in have.items():
+        if path not in want:
+            return f"{name}{path} has shape {shape}, should be None"
+    return None
+
+
+def _weak(obj):
+    try:
+        return weakref.ref(obj)
+    except TypeError:
+        return None
+
+
+_SETUP_ONLY = object()
+"""``check_belongs``'s default ``state``: check the setup alone."""
+
+
+def check_belongs(model: Model, setup, state=_SETUP_ONLY) -> None:
+    """Check, on the host before anything is traced, that ``setup`` (and ``state``) are ``model``'s
+    as far as their shapes tell: particle count, dimension, grid nodes, and which optional fields
+    (``corners``, ``C``, ``x_traction``, ``e``, ``internal``) the run has. Values are not compared,
+    so a tracer passes as any array of its shape.
+
+    Args:
+        model: the run.
+        setup: the ``Setup`` given with it.
+        state: the ``State`` given with it; left out to check ``setup`` alone.
+
+    Raises:
+        ValueError: ``setup`` or ``state`` is not a ``Setup`` or ``State``, or is another run's: the
+            message names the argument, the first entry that differs and what it should be.
+    """
+    if not isinstance(setup, Setup):
+        raise ValueError(f"setup must be the Setup of model, jm.setup(model), got {brief(setup)}")
+    if state is not _SETUP_ONLY and not isinstance(state, State):
+        raise ValueError(
+            f"state must be a State of model (jm.initial_state(model, setup) or a step's), got {brief(state)}"
+        )
+    model_ref, setup_ref, expected = _LAST_CHECKED
+    known = model_ref is not None and setup_ref is not None and model_ref() is model and setup_ref() is setup
+    if not known:
+        expected = _expected(model)
+    abstract, setup_shapes, initial, state_shapes = expected
+    n, dim = abstract.body.X.shape
+    run = f"model ({n} particles in {dim}D, {abstract.grid.n_nodes} grid nodes)"
+    if not known:
+        wrong = _mismatch("setup", setup, _shapes(setup), abstract, setup_shapes)
+        grid, want = setup.grid, abstract.grid
+        if wrong is None and (grid.n_nodes, grid.shape) != (want.n_nodes, want.shape):
+            wrong = (
+                f"setup.grid has {grid.n_nodes} nodes (shape {grid.shape}), should have "
+                f"{want.n_nodes} (shape {want.shape})"
+            )
+        if wrong is not None:
+            raise ValueError(f"setup does not belong to {run}: {wrong}; make it with jm.setup(model)")
+        _LAST_CHECKED[:] = [_weak(model), _weak(setup), expected]
+    if state is _SETUP_ONLY:
+        return
+    given = _shapes(state)
+    wrong = _mismatch("state", state, given, initial, state_shapes)
+    if wrong is None and given[0] != state_shapes[0]:
+        wrong = f"its fields are {_paths(state)}, should be {_paths(initial)}"
+    if wrong is not None:
+        raise ValueError(
+            f"state does not belong to {run}: {wrong}; start from jm.initial_state(model, setup)"
+        )
 
 
 def _initial_regions(model: Model, setup: Setup, F):
@@ -677,9 +884,11 @@ def step(
     Raises:
         ValueError: a concrete ``dt`` that ``simulate`` would refuse (not one finite number > 0),
             with its message. A traced ``dt`` (inside ``jax.jit``, ``jax.grad``, ``jax.vmap``) is
-            not checked.
+            not checked. A ``setup`` or ``state`` of another run (``check_belongs``: their shapes
+            are compared with ``model``'s, tracers too).
     """
     check_dt(dt, ": to step with several values, jax.vmap over step")
+    check_belongs(model, setup, state)
     if not isinstance(dt, jax.Array):  # a Python or NumPy number, as simulate converts it
         dt = as_float(dt)
     return _compiled_step(model, setup, state, dt, limit, active, t_new)

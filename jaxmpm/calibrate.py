@@ -68,6 +68,7 @@ from ._checks import (
     check_bool,
     check_finite,
     check_int,
+    check_keywords,
     check_nonnegative,
     check_positive,
     check_real,
@@ -273,6 +274,18 @@ def observable(scene: AbstractScene) -> str:
     return "v_plate" if isinstance(scene, GurneySlab) else "x_free"
 
 
+_TRAJECTORY_SETS = {
+    "steps": "trajectory sets it from ts and dt (enough steps of dt to reach the last time)",
+    "saveat": "trajectory saves every step, the fields its observable needs",
+    "throw": "trajectory raises SimulationError on a breakdown of concrete values and gives NaN "
+    "when traced (inside jit, vmap or a derivative)",
+    "t_end": "trajectory runs fixed steps of dt to the last of ts",
+    "cfl": "trajectory runs fixed steps of dt to the last of ts",
+    "max_steps": "trajectory runs fixed steps of dt to the last of ts",
+}
+"""The keywords of ``simulate`` that ``trajectory`` refuses, each with why: it sets them itself."""
+
+
 def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, dt, **kwargs) -> jax.Array:
     """The scene's observable (``observable``) at times ``ts`` (linear between steps), from one run of
     ``dt`` steps: the gas slab's free-surface position ``x_R``, or the Gurney slab's plate velocity.
@@ -282,7 +295,9 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
         interpolator: the MPM method.
         ts: the times (``>= 0``).
         dt: the time step.
-        **kwargs: passed to ``simulate``.
+        **kwargs: passed to ``simulate`` (``transfer``, ``artificial_cells``, ``viscosity``, ...),
+            except those ``trajectory`` sets itself (``steps``, ``saveat``, ``throw``) and those of
+            a run to an end time (``t_end``, ``cfl``, ``max_steps``).
 
     Returns:
         The observable at ``ts`` (``scenes.gas_slab.free_surface``, ``GurneySlab.plate_velocity``).
@@ -291,10 +306,13 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
 
     Raises:
         ValueError: ``scene`` or ``interpolator`` is not jaxmpm's, ``ts`` is empty, not finite or
-            negative, or ``dt`` is not one number > 0.
+            negative, ``dt`` is not one number > 0, or a keyword that ``trajectory`` sets itself or
+            that belongs to a run to an end time (named, with what ``trajectory`` does instead).
+        TypeError: a keyword ``simulate`` does not take (the message lists those it takes).
         SimulationError: called on concrete values, the run broke down (the step, particle and
             quantity, as ``simulate`` says them).
     """
+    check_keywords("trajectory", kwargs, simulate, refused=_TRAJECTORY_SETS)
     _check_parts(scene, interpolator)
     steps = _steps(ts, dt)
     ts = jnp.asarray(ts)

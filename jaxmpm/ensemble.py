@@ -18,6 +18,8 @@ Every process gets every member's status (``Ensemble.status``, ``failures``); ga
 from __future__ import annotations
 
 import dataclasses
+import operator
+from collections.abc import Mapping
 
 import equinox as eqx
 import jax
@@ -28,6 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
 from . import status as st_bits
+from ._checks import brief, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
@@ -76,20 +79,39 @@ class Ensemble:
             )
         return out
 
-    def member(self, i: int) -> Solution:
+    def member(self, i: int | np.integer | jax.Array) -> Solution:
         """One member's solution.
 
         Args:
-            i: the member.
+            i: the member, an integer (a Python or NumPy one, or a 0-d integer array) from 0 to
+                ``members - 1``; a negative index counts from the end, as for a Python sequence (-1 is
+                the last member).
 
         Returns:
             Member ``i``'s ``Solution``, as ``simulate`` would return it.
+
+        Raises:
+            ValueError: ``i`` is not an integer (a bool is not one) or not a member's index (from
+                ``-members`` to ``members - 1``).
         """
-        return jax.tree_util.tree_map(lambda a: a[i], self.solution)
+        n = len(self.status)
+        try:  # a Python or NumPy integer, or a concrete 0-d integer array
+            k = None if isinstance(i, bool | np.bool_) else operator.index(i)
+        except TypeError:
+            k = None
+        if k is None or not -n <= k < n:
+            raise ValueError(
+                f"i must be a member's index, an integer from 0 to {n - 1} (or from {-n} to -1, "
+                f"counting from the end) for this ensemble of {n} members, got {brief(i)}"
+            )
+        return jax.tree_util.tree_map(lambda a: a[k], self.solution)
 
 
 RUN_NAMES = ("dt", "t_end", "cfl")
 """The run's own continuous inputs that ``vary`` may name besides the scene's parameters."""
+
+TO_END_NAMES = ("t_end", "cfl")
+"""The inputs of ``RUN_NAMES`` that belong to a run to an end time (``dt`` to a run of fixed steps)."""
 
 
 @eqx.filter_jit
@@ -163,8 +185,9 @@ def ensemble(
     Args:
         scene: the base scene.
         interpolator: the method.
-        vary: continuous parameter names (scene parameters, ``dt``, or with ``t_end``: ``t_end`` and
-            ``cfl``) to arrays of equal length: one value per member.
+        vary: a dict of continuous parameter names (the scene's parameters; with fixed steps
+            ``dt``, with ``t_end``: ``t_end`` and ``cfl``) to arrays of equal length: one value per
+            member.
         devices: the devices to shard the members over: a sequence of devices, or a count ``k`` (the
             first ``k`` of ``jax.devices()``), as for ``simulate`` (default: every local device).
         **simulate_kwargs: as for ``simulate`` (``dt``, ``steps`` or ``t_end``, ``max_steps``, ...);
@@ -174,18 +197,43 @@ def ensemble(
         An ``Ensemble``.
 
     Raises:
-        ValueError: bad ``vary`` (unknown or structural names, arrays of different lengths, values
-            that are not finite or that the parameter does not allow), bad run arguments, or more
-            members than the device's memory holds (estimated before anything is allocated).
+        ValueError: bad ``vary`` (not a dict, unknown or structural names, a name the run does not
+            use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``; values that are not
+            real numbers, arrays of different lengths, values that are not finite or that the
+            parameter does not allow), bad run arguments, or more members than the device's memory
+            holds (estimated before anything is allocated).
     """
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
+    if not isinstance(vary, Mapping):
+        raise ValueError(
+            "vary must be a dict of parameter name to values, one per member (such as "
+            f"{{'beta': [100.0, 200.0]}}), got {type(vary).__name__} {brief(vary)}"
+        )
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
     check_names(scene, [k for k in vary if k not in RUN_NAMES] or ["dt"])
+    to_end = simulate_kwargs.get("t_end") is not None
     for k in vary:
+        if k in TO_END_NAMES and not to_end:
+            raise ValueError(
+                f"vary names {k!r}, which belongs to a run to an end time (t_end=..., cfl=..., "
+                "max_steps=...); this run takes fixed steps (dt and steps): vary 'dt' instead, or "
+                "run to t_end"
+            )
+        if k == "dt" and to_end:
+            raise ValueError(
+                "vary names 'dt', which belongs to a run of fixed steps (dt and steps); this run goes "
+                "to t_end, its steps set by cfl: vary 't_end' or 'cfl' instead"
+            )
         if k in RUN_NAMES and k not in simulate_kwargs:
             raise ValueError(f"vary names {k!r}, so pass a value for {k} too (it gives the mode and dtype)")
-    arrays = {k: np.asarray(v, dtype=np.float64) for k, v in vary.items()}
+    arrays = {}
+    for k, v in vary.items():
+        if not is_real(v):
+            raise ValueError(
+                f"vary[{k!r}] must be a 1D sequence of real numbers, one per member, got {brief(v)}"
+            )
+        arrays[k] = np.asarray(v, dtype=np.float64)
     sizes = {k: a.shape for k, a in arrays.items()}
     if any(a.ndim != 1 for a in arrays.values()) or len(set(sizes.values())) != 1:
         raise ValueError(f"every vary entry must be a 1D array of the same length, got shapes {sizes}")

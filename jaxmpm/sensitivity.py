@@ -20,18 +20,19 @@ relative to the nodes. ``dt`` is taken at a fixed number of steps, so the final 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import equinox as eqx
 import jax
 import numpy as np
 
-from ._checks import check_positive
+from ._checks import brief, check_positive
 from ._simulate import Solution, simulate
+from ._step import check_scene
 from ._util import as_float
 from .interpolators import AbstractInterpolator
 from .metrics import available_errors, errors
-from .scenes import AbstractScene
+from .scenes import SCENES, AbstractScene
 
 
 def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
@@ -42,12 +43,25 @@ def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[s
 
     Returns:
         The scene's float parameters and ``dt``.
+
+    Raises:
+        ValueError: ``scene`` is neither a jaxmpm scene nor a scene class (a registry name such as
+            ``"gas-expansion"`` is told the call that makes the scene, ``jm.SCENES[name]()``).
     """
+    a_class = isinstance(scene, type) and issubclass(scene, AbstractScene)
+    if not isinstance(scene, AbstractScene) and not a_class:
+        hint = ""
+        if isinstance(scene, str) and scene in SCENES:
+            hint = f": jm.SCENES[{scene!r}]() makes that scene (jm.SCENES[{scene!r}] is its class)"
+        raise ValueError(
+            f"scene must be a jaxmpm scene or scene class such as jm.GasExpansion() or jm.GasExpansion "
+            f"(SCENES: {', '.join(SCENES)}), got {brief(scene)}{hint}"
+        )
     cls = scene if isinstance(scene, type) else type(scene)
     return tuple(k for k, v in cls.parameters().items() if isinstance(v, float)) + ("dt",)
 
 
-def check_names(scene: AbstractScene, names: Sequence[str]) -> None:
+def check_names(scene: AbstractScene, names) -> None:
     """Check names for a gradient.
 
     Args:
@@ -55,10 +69,14 @@ def check_names(scene: AbstractScene, names: Sequence[str]) -> None:
         names: parameter names.
 
     Raises:
-        ValueError: no name, or a name that is not a continuous parameter of ``scene`` (or ``dt``).
+        ValueError: ``scene`` is not a jaxmpm scene (``continuous_parameters``), ``names`` is not a
+            sequence of names, no name, or a name that is not a continuous parameter of ``scene`` (or
+            ``dt``).
     """
     if isinstance(names, str):
         raise ValueError(f"names must be a sequence of parameter names, got the string {names!r}")
+    if not isinstance(names, Iterable):
+        raise ValueError(f"names must be a sequence of parameter names such as ['beta'], got {brief(names)}")
     allowed = continuous_parameters(scene)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
     for name in names:
@@ -98,8 +116,12 @@ def objective(
         The function of the named parameters.
 
     Raises:
-        ValueError: an unknown or structural name, before anything is traced.
+        ValueError: before anything is traced: ``scene`` is not a jaxmpm scene object (a class or
+            a registry name is told how to make one), ``names`` is not a sequence of continuous
+            parameter names (an unknown or structural name), or ``error`` is neither a name of
+            ``available_errors(scene)`` nor a function.
     """
+    check_scene(scene)
     check_names(scene, names)
     if "dt" in names:  # a traced dt passes simulate's checks: check the value it starts from here
         if np.ndim(dt) != 0:
@@ -108,6 +130,11 @@ def objective(
     scene_names = [n for n in names if n != "dt"]
     if isinstance(error, str) and error not in available_errors(scene):
         raise ValueError(f"error must be one of the finite errors of {scene.name}: {available_errors(scene)}")
+    if not isinstance(error, str) and not callable(error):
+        raise ValueError(
+            f"error must be one of the finite errors of {scene.name} ({', '.join(available_errors(scene))}) "
+            f"or a function (scene, solution) -> scalar, got {brief(error)}"
+        )
 
     def f(values: dict[str, jax.Array]) -> jax.Array:
         where = lambda s: [getattr(s, n) for n in scene_names]
@@ -149,7 +176,8 @@ def gradient(
         ``{name: d(error)/d(name)}``.
 
     Raises:
-        ValueError: an unknown mode, or an unknown or structural name.
+        ValueError: an unknown mode, or what ``objective`` refuses (a scene that is not a jaxmpm
+            scene object, bad ``names``, an unknown ``error``), before anything is traced.
     """
     if mode not in ("reverse", "forward"):
         raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")
