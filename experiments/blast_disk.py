@@ -100,12 +100,13 @@ def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
     R = np.asarray(metrics.reference_radius(body, scene.centre))
     at = ref.at(R)
     v_ref = np.asarray(at["v"][0])
-    v_r = np.asarray(metrics.radial_velocity(st, body, scene.centre))
+    # a broken run's last good state is measured, and the row says it broke down
+    v_r = np.asarray(metrics.radial_velocity(st, body, scene.centre, allow_broken=True))
     r = np.linalg.norm(np.asarray(st.x), axis=1)
     ring = R > float(scene.radius) - 0.6 * float(scene.h)
-    spread = metrics.angular_spread(st, body, scene.centre, bins=cells, detrend=True)
-    rotation = metrics.spurious_rotation(st, body)
-    folded = int(metrics.folded_domains(metrics.domain_corners(st, body), body))
+    spread = metrics.angular_spread(st, body, scene.centre, bins=cells, detrend=True, allow_broken=True)
+    rotation = metrics.spurious_rotation(st, body, allow_broken=True)
+    folded = int(metrics.folded_domains(metrics.domain_corners(st, body, allow_broken=True), body))
     status = int(st.status)
     what = (
         "ran through"

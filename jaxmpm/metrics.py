@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
+from ._checks import brief, check_bool, check_finite, check_int, check_scalar, is_concrete, python_int
 from ._util import adjugate, corner_signs, det
 from .materials import DEVIATORIC_KEYS, AbstractEOS
 from .particles import Body, State, parallelogram_corners
@@ -53,6 +54,10 @@ def available_errors(scene: AbstractScene) -> tuple[str, ...]:
 def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> dict[str, Array] | None:
     """The exact fields at every real particle.
 
+    A scene whose exact solution holds for a while only declares until when, ``t_valid``
+    (``VacuumExpansion``, ``Riemann``, ``ShockTube``, ``Detonation``); at a concrete ``t`` past it
+    there is none (``exact_holds``).
+
     Args:
         scene: the scene.
         body: the reference configuration.
@@ -60,15 +65,45 @@ def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> d
 
     Returns:
         ``dict(x, v, F, sigma)`` at every particle's ``X`` at time ``t``, each with a leading
-        particle axis; ``None`` for a scene with no exact solution.
+        particle axis; ``None`` for a scene with no exact solution, or none at ``t``.
+
+    Raises:
+        ValueError: ``scene`` is not a scene, or ``body`` is not a ``Body``.
+    """
+    _check_scene(scene)
+    _check_body(body)
+    if scene.exact is None or not exact_holds(scene, t):
+        return None
+    return _exact_fields(scene, body.X, t)
+
+
+def exact_holds(scene: AbstractScene, t: Float[ArrayLike, ""]) -> bool:
+    """Whether the scene's exact solution holds at time ``t``: up to its ``t_valid`` (to round-off)
+    where it declares one (the time a wave reaches what the solution leaves out: the wall of a
+    vacuum expansion, an end of a shock tube or of a detonated slab).
+
+    Args:
+        scene: the scene.
+        t: the time; traced (under ``jit`` or ``vmap``) it cannot be read and is taken as within.
+
+    Returns:
+        ``True`` where the scene has no ``t_valid``, ``t`` is traced, or ``t <= t_valid``; ``False``
+        past it (and for a scene with no exact solution at all).
 
     Raises:
         ValueError: ``scene`` is not a scene.
     """
     _check_scene(scene)
     if scene.exact is None:
-        return None
-    return _exact_fields(scene, body.X, t)
+        return False
+    if getattr(type(scene), "t_valid", None) is None or not is_concrete(t) or np.ndim(t) != 0:
+        return True
+    t_valid = scene.t_valid
+    if not is_concrete(t_valid):
+        return True
+    dtype = np.asarray(t).dtype
+    eps = float(np.finfo(dtype if np.issubdtype(dtype, np.floating) else np.float64).eps)
+    return float(t) <= float(t_valid) * (1.0 + 8.0 * eps)
 
 
 @eqx.filter_jit
@@ -77,33 +112,55 @@ def _exact_fields(scene, X, t):
     return jax.vmap(scene.exact, in_axes=(0, None))(X, t)
 
 
-def implied_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
+def implied_corners(state: State, body: Body, allow_broken: bool = False) -> Float[Array, "n corners dim"]:
     """Each particle's domain corners as its ``x`` and ``F`` imply them.
+
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
 
     Args:
         state: the state.
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``x_p + F diag(r0) s_c`` (``particles.parallelogram_corners``; in 1D ``x_p -/+ F r0``).
+
+    Raises:
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), ``body`` is not a ``Body``, or the state and the body
+            have different particle counts.
     """
+    _check_state(state, "implied_corners()", allow_broken)
+    _check_body(body)
+    _check_particles(state, body)
     return parallelogram_corners(body.r0, state.x, state.F)
 
 
-def domain_corners(state: State, body: Body) -> Float[Array, "n corners dim"]:
+def domain_corners(state: State, body: Body, allow_broken: bool = False) -> Float[Array, "n corners dim"]:
     """Each particle's own domain corners.
+
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
 
     Args:
         state: the state.
         body: the reference configuration.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         The tracked corners where the run tracks them (MPQ, CPDI2: one copy for all the particles that meet
         at a corner), else those ``x`` and ``F`` imply (``implied_corners``).
+
+    Raises:
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), ``body`` is not a ``Body``, or the state and the body
+            have different particle counts.
     """
+    _check_state(state, "domain_corners()", allow_broken)
+    _check_body(body)
+    _check_particles(state, body)
     if state.corners is not None:
         return body.particle_corners(state.corners)
-    return implied_corners(state, body)
+    return parallelogram_corners(body.r0, state.x, state.F)
 
 
 def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Array, " nc"]:
@@ -119,7 +176,13 @@ def corner_gap(corners: Float[Array, "n corners dim"], body: Body) -> Float[Arra
 
     Returns:
         The gap at each corner of ``body.X_corners``.
+
+    Raises:
+        ValueError: ``body`` is not a ``Body``, or ``corners`` are not ``2^dim`` corners of each of
+            its particles.
     """
+    _check_body(body)
+    _check_corners(corners, body)
     return _safe_sqrt(_corner_gap_sq(corners, body))
 
 
@@ -151,10 +214,12 @@ def separation(state: State, body: Body, allow_broken: bool = False) -> Float[Ar
         The separation of each pair of neighbours.
 
     Raises:
-        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``), the run
-            is not 1D, or the state and the body have different particle counts.
+        ValueError: ``state`` is not one run's ``State`` (a ``Solution``, an ensemble's batch) or is of
+            a run that broke down (and ``allow_broken`` is ``False``), ``body`` is not a ``Body``, the
+            run is not 1D, or the state and the body have different particle counts.
     """
-    _refuse_broken(state, allow_broken, "separation() measures a finished run, and this state is")
+    _check_state(state, "separation()", allow_broken)
+    _check_body(body)
     if state.x.shape[1] != 1:
         raise ValueError("separation is the 1D diagnostic; in 2D and 3D use corner_gap")
     _check_particles(state, body)
@@ -209,18 +274,61 @@ def smooth_mask(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> Bo
         One bool per particle, or ``None`` for a scene smooth everywhere.
 
     Raises:
-        ValueError: ``scene`` is not a scene.
+        ValueError: ``scene`` is not a scene, or ``body`` is not a ``Body``.
     """
     _check_scene(scene)
+    _check_body(body)
     if scene.smooth is None:
         return None
     return jax.vmap(scene.smooth, in_axes=(0, None))(body.X, t)
 
 
+def _check_state(state, what: str, allow_broken) -> None:  # allow_broken: checked here
+    """``state`` is one run's ``State`` (not a ``Solution``, ``None`` or an ensemble's batch), and
+    not that of a run that broke down unless ``allow_broken``."""
+    if not isinstance(state, State):
+        if isinstance(getattr(state, "state", None), State):  # a Solution
+            raise ValueError(
+                f"state must be a jaxmpm State, got a {type(state).__name__}: pass solution.state and "
+                "solution.body"
+            )
+        if getattr(state, "solution", None) is not None and hasattr(state, "member"):  # an Ensemble
+            raise ValueError(
+                f"state must be a jaxmpm State, got an {type(state).__name__}: measure each member "
+                "(ensemble.member(i).state and .body)"
+            )
+        got = "None" if state is None else type(state).__name__
+        raise ValueError(f"state must be a jaxmpm State (solution.state), got {got}")
+    if state.x.ndim != 2:
+        raise ValueError(
+            f"{what} measures one run, and this state holds a batch (x of shape {tuple(state.x.shape)}): "
+            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
+        )
+    _refuse_broken(state, allow_broken, f"{what} measures a finished run, and this state is")
+
+
+def _check_body(body) -> None:
+    """``body`` is one run's ``Body`` (not a ``Solution``, ``None`` or an ensemble's batch)."""
+    if not isinstance(body, Body):
+        if isinstance(getattr(body, "body", None), Body):  # a Solution
+            raise ValueError(
+                f"body must be a jaxmpm Body, got a {type(body).__name__}: pass solution.state and "
+                "solution.body"
+            )
+        got = "None" if body is None else type(body).__name__
+        raise ValueError(
+            f"body must be the run's reference configuration, a jaxmpm Body (solution.body), got {got}"
+        )
+    if body.X.ndim != 2:
+        raise ValueError(
+            f"body must be one run's Body, and this one holds a batch (X of shape {tuple(body.X.shape)}): "
+            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
+        )
+
+
 def _refuse_broken(state: State, allow_broken, what: str) -> None:  # allow_broken: checked here
     """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status)."""
-    if not isinstance(allow_broken, bool):
-        raise ValueError(f"allow_broken must be True or False, got {allow_broken!r}")
+    check_bool("allow_broken", allow_broken)
     status = state.status
     if allow_broken or isinstance(status, jax.core.Tracer) or np.ndim(status) != 0 or int(status) == 0:
         return
@@ -259,28 +367,37 @@ def errors(
     is refused unless ``allow_broken``. Traced (under ``jit`` or ``vmap``), the status cannot be read:
     check it beside the errors (``Solution.status``, ``Ensemble.status``).
 
+    A scene whose exact solution holds for a while only (``t_valid``: ``VacuumExpansion``,
+    ``Riemann``, ``ShockTube``, ``Detonation``) has none past it: at a concrete ``state.t`` past
+    ``t_valid`` the errors against it are ``None``, as for a scene with no exact solution
+    (``exact_holds`` says which).
+
     Args:
         scene: the scene.
-        state: the state.
-        body: the reference configuration.
-        where: one bool per particle, or ``None`` for all.
+        state: the state (``solution.state``).
+        body: the reference configuration (``solution.body``).
+        where: one bool per particle (an array, or a list of them), or ``None`` for all.
         allow_broken: measure the state of a run that broke down too.
 
     Returns:
         Error name (``"separation_max"`` and ``EXACT_ERRORS``) to value or ``None``.
 
     Raises:
-        ValueError: ``scene`` is not a scene, the state is of a run that broke down (and
-            ``allow_broken`` is ``False``), the state and the body have different particle counts, or
-            ``where`` is not one bool per particle.
+        ValueError: ``scene`` is not a scene, ``state`` is not one run's ``State`` (a ``Solution``, an
+            ensemble's batch, ``None``), ``body`` is not a ``Body``, the state is of a run that broke
+            down (and ``allow_broken`` is ``False``), the state is not of the scene's dimension, the
+            state and the body have different particle counts, ``where`` is not one bool per
+            particle.
     """
     _check_scene(scene)
-    _refuse_broken(state, allow_broken, "errors() measures a finished run, and this state is")
+    _check_state(state, "errors()", allow_broken)
+    _check_body(body)
     _check_run(scene, state, body, "errors()")
-    _check_where(where, body)
+    where = _check_where(where, body)
     b = body.boundary
     has_interior = isinstance(b, jax.core.Tracer) or not bool(np.all(np.asarray(b)))
-    ex = exact_fields(scene, body, state.t)
+    exact = scene.exact is not None and exact_holds(scene, state.t)
+    ex = _exact_fields(scene, body.X, state.t) if exact else None
     fields = (state.x, state.v, state.F, state.sigma)
     return _errors(fields, ex, body, where, has_interior)
 
@@ -345,12 +462,15 @@ def diagnostics(
         ``dict(mass, momentum, energy_kinetic, energy_internal, energy)``.
 
     Raises:
-        ValueError: ``scene`` is not a scene, the state is of a run that broke down (and
-            ``allow_broken`` is ``False``), or the state and the body have different particle counts.
+        ValueError: ``scene`` is not a scene, ``state`` is not one run's ``State`` (a ``Solution``, an
+            ensemble's batch, ``None``), ``body`` is not a ``Body``, the state is of a run that broke
+            down (and ``allow_broken`` is ``False``), the state is not of the scene's dimension, or the
+            state and the body have different particle counts.
     """
     _check_scene(scene)
-    _refuse_broken(state, allow_broken, "diagnostics() measures a finished run, and this state is")
-    _check_particles(state, body)
+    _check_state(state, "diagnostics()", allow_broken)
+    _check_body(body)
+    _check_run(scene, state, body, "diagnostics()")
     return _diagnostics(scene, state.v, state.F, state.e, body)
 
 
@@ -402,15 +522,17 @@ def pressure_error(
         ValueError: as for ``errors``.
     """
     _check_scene(scene)
-    _refuse_broken(state, allow_broken, "pressure_error() measures a finished run, and this state is")
+    _check_state(state, "pressure_error()", allow_broken)
+    _check_body(body)
     _check_run(scene, state, body, "pressure_error()")
-    _check_where(where, body)
-    ex = exact_fields(scene, body, state.t)
-    if ex is None:
+    where = _check_where(where, body)
+    if scene.exact is None:
         return None
+    _check_time(scene, state.t, "pressure_error() compares with", "the state's time t")
+    ex = _exact_fields(scene, body.X, state.t)
     dim = state.F.shape[-1]
     p_ex = -jnp.trace(ex["sigma"], axis1=1, axis2=2) / dim
-    sq = jnp.square((pressure(state) - p_ex) / jnp.where(p_ex == 0, 1.0, p_ex))
+    sq = jnp.square((_pressure(state) - p_ex) / jnp.where(p_ex == 0, 1.0, p_ex))
     return _max_rms(sq, where)[1]
 
 
@@ -428,13 +550,17 @@ def density(state: State, body: Body, allow_broken: bool = False) -> Float[Array
         ``rho``.
 
     Raises:
-        ValueError: the state is of a run that broke down (and ``allow_broken`` is ``False``).
+        ValueError: ``state`` is not one run's ``State`` (a ``Solution``, an ensemble's batch,
+            ``None``) or is of a run that broke down (and ``allow_broken`` is ``False``), ``body`` is not
+            a ``Body``, or the state and the body have different particle counts.
     """
-    _refuse_broken(state, allow_broken, "density() measures a finished run, and this state is")
+    _check_state(state, "density()", allow_broken)
+    _check_body(body)
+    _check_particles(state, body)
     return body.m / (body.V0 * jax.vmap(jnp.linalg.det)(state.F))
 
 
-def pressure(state: State) -> Float[Array, " n"]:
+def pressure(state: State, allow_broken: bool = False) -> Float[Array, " n"]:
     """Each particle's pressure ``-tr(sigma) / dim`` (the viscous pressure included).
 
     With the deviatoric stress of ``ElasticPlastic`` among the internal variables (``s_xx``, ...), the
@@ -442,12 +568,24 @@ def pressure(state: State) -> Float[Array, " n"]:
     (``a < dim``): the mean of the full 3x3 stress, whose out-of-plane components ``sigma`` (1D, 2D)
     does not hold. Other particles carry zeros there.
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``p``.
+
+    Raises:
+        ValueError: ``state`` is not one run's ``State`` (a ``Solution``, an ensemble's batch,
+            ``None``) or is of a run that broke down (and ``allow_broken`` is ``False``).
     """
+    _check_state(state, "pressure()", allow_broken)
+    return _pressure(state)
+
+
+def _pressure(state: State) -> Float[Array, " n"]:
     dim = state.F.shape[-1]
     trace = jnp.trace(state.sigma, axis1=1, axis2=2)
     if state.internal is not None and DEVIATORIC_KEYS[0] in state.internal:
@@ -480,17 +618,20 @@ def euler_errors(
         run without an energy equation.
 
     Raises:
-        ValueError: ``scene`` is not a scene, or the state is of a run that broke down (and
-            ``allow_broken`` is ``False``).
+        ValueError: ``scene`` is not a scene, ``state`` is not one run's ``State`` (a ``Solution``, an
+            ensemble's batch, ``None``) or is of a run that broke down (and ``allow_broken`` is
+            ``False``), ``body`` is not a ``Body``, or the state and the body have different particle
+            counts.
     """
     _check_scene(scene)
-    _refuse_broken(state, allow_broken, "euler_errors() measures a finished run, and this state is")
+    _check_state(state, "euler_errors()", allow_broken)
+    _check_body(body)
     _check_particles(state, body)
     if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
         return None
     ex = scene.solution(state.x[:, 0], state.t)
     V = body.V0 * state.F[:, 0, 0]
-    num = dict(rho=density(state, body, allow_broken), u=state.v[:, 0], p=pressure(state), e=state.e)
+    num = dict(rho=density(state, body, bool(allow_broken)), u=state.v[:, 0], p=_pressure(state), e=state.e)
     return {f"{k}_L1": jnp.sum(jnp.abs(num[k] - ex[k]) * V) for k in EULER_FIELDS}
 
 
@@ -517,21 +658,25 @@ def _check_particles(state: State, body: Body) -> None:
 
 
 def _check_run(scene: AbstractScene, state: State, body: Body, what: str) -> None:
-    """One run's state (not an ensemble's batch) of the scene's dimension and the body's particles."""
-    if state.x.ndim != 2:
-        raise ValueError(
-            f"{what} measures one run, and this state holds a batch (x of shape {tuple(state.x.shape)}): "
-            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
-        )
+    """One run's state (``_check_state``) of the scene's dimension and the body's particles."""
     if state.x.shape[1] != scene.dim:
         raise ValueError(f"the state is {state.x.shape[1]}D and the scene {scene.name} is {scene.dim}D")
     _check_particles(state, body)
 
 
-def _check_where(where, body: Body) -> None:
-    """``where``: ``None``, a tracer, or one bool per particle that selects at least one particle."""
+def _check_where(where, body: Body):
+    """``where``: ``None``, a tracer, or one bool per particle that selects at least one particle.
+
+    Returns ``where``, a list or tuple of bools as a NumPy array (an array as it is)."""
     if where is None or isinstance(where, jax.core.Tracer):
-        return
+        return where
+    if not isinstance(where, (np.ndarray, jax.Array)):
+        try:
+            where = np.asarray(where)
+        except (TypeError, ValueError):  # ragged lists, objects numpy refuses
+            raise ValueError(
+                f"where must be one bool per particle, shape ({body.n},), got {brief(where)}"
+            ) from None
     if np.shape(where) != (body.n,) or np.asarray(where).dtype != np.bool_:
         raise ValueError(
             f"where must be one bool per particle, shape ({body.n},), got "
@@ -539,6 +684,34 @@ def _check_where(where, body: Body) -> None:
         )
     if not np.any(np.asarray(where)):
         raise ValueError("where selects no particle: there is nothing to measure")
+    return where
+
+
+def _check_time(scene: AbstractScene, t, what: str, name: str) -> None:
+    """Refuse a concrete time ``t`` past the scene's ``t_valid`` (``exact_holds``)."""
+    if not exact_holds(scene, t):
+        raise ValueError(
+            f"{what} the exact solution of {scene.name}, which holds up to t_valid = "
+            f"{float(scene.t_valid):.6g}, and {name} = {float(t):.6g} is past it: measure a state at "
+            "t <= scene.t_valid"
+        )
+
+
+def _check_corners(corners, body: Body) -> None:
+    """``corners``: the ``2^dim`` corners of each of the body's particles, ``(n, 2^dim, dim)``."""
+    n, d = body.r0.shape
+    want = (n, 2**d, d)
+    shape = np.shape(corners)
+    if len(shape) == 3 and shape[0] == n and shape[2] == d and shape[1] != 2**d:
+        raise ValueError(
+            f"a particle has 2^dim = {2**d} corners in {d}D, got {shape[1]} (corners of shape {shape}; "
+            "domain_corners(state, body) gives them)"
+        )
+    if shape != want:
+        raise ValueError(
+            f"corners must be the 2^dim corners of each particle, shape (n, 2^dim, dim) = {want} "
+            f"(domain_corners(state, body)), got shape {np.shape(corners)}"
+        )
 
 
 def _centre(centre, like):
@@ -558,28 +731,45 @@ def reference_radius(body: Body, centre: Float[ArrayLike, " dim"]) -> Float[Arra
 
     Returns:
         ``R``; differentiable, with derivative 0 (not NaN) at ``X = c``.
+
+    Raises:
+        ValueError: ``body`` is not a ``Body``, or ``centre`` does not have ``dim`` components.
     """
+    _check_body(body)
     return _safe_sqrt(jnp.sum(jnp.square(body.X - _centre(centre, body.X)), axis=1))
 
 
-def radial_velocity(state: State, body: Body, centre: Float[ArrayLike, " dim"]) -> Float[Array, " n"]:
+def radial_velocity(
+    state: State, body: Body, centre: Float[ArrayLike, " dim"], allow_broken: bool = False
+) -> Float[Array, " n"]:
     """Each particle's radial velocity about the centre, ``v_r = v . (x - c) / |x - c|``.
 
     Taken along the particle's current direction from ``c`` (0 for a particle at ``x = c``, where
     the direction is undefined). For an exact radial motion ``v_r`` is a function of ``R`` alone.
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
         body: the reference configuration (checked to hold the state's particles).
         centre: the centre ``c``.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``v_r``; differentiable, also at ``x = c``.
 
     Raises:
-        ValueError: the state and the body hold different numbers of particles.
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), ``body`` is not a ``Body``, the state and the body hold
+            different numbers of particles, or ``centre`` does not have ``dim`` components.
     """
+    _check_state(state, "radial_velocity()", allow_broken)
+    _check_body(body)
     _check_particles(state, body)
+    return _radial_velocity(state, centre)
+
+
+def _radial_velocity(state: State, centre) -> Float[Array, " n"]:
     e = state.x - _centre(centre, state.x)
     r2 = jnp.sum(jnp.square(e), axis=1)
     positive = r2 > 0
@@ -596,16 +786,18 @@ def radial_bin(body: Body, centre: Float[ArrayLike, " dim"], bins: int) -> Int[A
     Args:
         body: the reference configuration.
         centre: the centre ``c``.
-        bins: number of bins (static, >= 1).
+        bins: number of bins (static, >= 1; a Python or NumPy integer).
 
     Returns:
         The bin of each particle, in ``0 .. bins - 1``.
 
     Raises:
-        ValueError: ``bins`` is not a positive integer.
+        ValueError: ``bins`` is not a positive integer, ``body`` is not a ``Body``, or ``centre`` does
+            not have ``dim`` components.
     """
-    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 1:
+    if isinstance(bins, bool) or not isinstance(bins, (int, np.integer)) or bins < 1:
         raise ValueError(f"bins must be a positive integer, got {bins!r}")
+    bins = int(bins)
     R = reference_radius(body, centre)
     R_max = jnp.max(R)
     k = jnp.floor(R / jnp.where(R_max > 0, R_max, 1.0) * bins)
@@ -619,6 +811,7 @@ def angular_spread(
     bins: int,
     threshold: float = 1e-3,
     detrend: bool = False,
+    allow_broken: bool = False,
 ) -> dict[str, Array]:
     """The spread of the radial velocity over the particles at a common reference radius.
 
@@ -641,13 +834,17 @@ def angular_spread(
     threshold * max_k |m_k|`` (a bin at rest, such as the particles near ``c`` where ``v_r -> 0``,
     has no meaningful relative spread). With no bin counted (every ``m_k = 0``) both are 0.
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
         body: the reference configuration.
         centre: the centre ``c``.
         bins: number of bins (static, >= 1).
-        threshold: the smallest ``|m_k|`` counted, relative to the largest (static).
+        threshold: the smallest ``|m_k|`` counted, relative to the largest (static, ``0 <= threshold
+            < 1``: at 1 or more no bin is counted).
         detrend: whether to take the deviations from the bin's line in ``R`` (static).
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``dict(per_bin, max, rms, counted)``: ``per_bin`` the spread of each bin (NaN where not
@@ -655,11 +852,25 @@ def angular_spread(
         are differentiable in the state, with derivative 0 (not NaN) where the spread is 0.
 
     Raises:
-        ValueError: ``bins`` is not a positive integer, or the state and the body hold different
-            numbers of particles.
+        ValueError: ``bins`` is not a positive integer, ``threshold`` is not a number in ``[0, 1)``,
+            ``detrend`` is not a bool, ``state`` is not one run's ``State`` or is of a run that broke
+            down (and ``allow_broken`` is ``False``), ``body`` is not a ``Body``, or the state and the
+            body hold different numbers of particles.
     """
+    check_scalar("threshold", threshold)
+    check_finite("threshold", threshold)
+    if is_concrete(threshold) and not 0.0 <= float(threshold) < 1.0:
+        raise ValueError(
+            f"threshold must be >= 0 and < 1 (the smallest |m_k| counted, relative to the largest), "
+            f"got {float(threshold)!r}"
+        )
+    check_bool("detrend", detrend)
+    _check_state(state, "angular_spread()", allow_broken)
+    _check_body(body)
+    _check_particles(state, body)
+    bins = python_int(bins)
     k = radial_bin(body, centre, bins)
-    vr = radial_velocity(state, body, centre)
+    vr = _radial_velocity(state, centre)
     count = jax.ops.segment_sum(jnp.ones_like(vr), k, num_segments=bins)
     n_k = jnp.maximum(count, 1.0)
     mean = jax.ops.segment_sum(vr, k, num_segments=bins) / n_k
@@ -705,11 +916,19 @@ def polar_rotation(
 
     Args:
         F: deformation gradients, ``det F != 0``.
-        iterations: Newton iterations (static).
+        iterations: Newton iterations (static, >= 1).
 
     Returns:
         ``R``.
+
+    Raises:
+        ValueError: ``iterations`` is not an integer >= 1.
     """
+    if is_concrete(iterations):
+        count = iterations
+        if isinstance(count, jax.Array) and count.ndim == 0 and jnp.issubdtype(count.dtype, jnp.integer):
+            count = int(count)
+        check_int("iterations", count, 1)
 
     def newton(_, X):
         X_inv = adjugate(X) / det(X)[:, None, None]
@@ -722,7 +941,7 @@ def polar_rotation(
     return jax.lax.fori_loop(0, iterations, newton, F)
 
 
-def rotation_angle(state: State) -> Float[Array, " n"]:
+def rotation_angle(state: State, allow_broken: bool = False) -> Float[Array, " n"]:
     """The angle of the rotation ``R`` of each particle's ``F = R U`` (radians).
 
     In 2D the signed angle ``theta = atan2(F_10 - F_01, F_00 + F_11)``, exact for the polar
@@ -733,13 +952,24 @@ def rotation_angle(state: State) -> Float[Array, " n"]:
     differentiable near 0 and pi, where arccos' derivative is infinite. In 1D 0. Meaningful for
     ``det F > 0`` (a folded particle has no polar rotation).
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``theta``; differentiable, with derivative 0 (not NaN) in 3D at ``R = I``.
+
+    Raises:
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), or the run is not 1D, 2D or 3D.
     """
-    F = state.F
+    _check_state(state, "rotation_angle()", allow_broken)
+    return _rotation_angle(state.F)
+
+
+def _rotation_angle(F: Float[Array, "n dim dim"]) -> Float[Array, " n"]:
     d = F.shape[-1]
     if d == 1:
         return jnp.zeros(F.shape[0], F.dtype)
@@ -753,44 +983,60 @@ def rotation_angle(state: State) -> Float[Array, " n"]:
     return jnp.arctan2(_safe_sqrt(jnp.sum(jnp.square(w), axis=1)), cos)
 
 
-def spurious_rotation(state: State, body: Body, where: Bool[Array, " n"] | None = None) -> dict[str, Array]:
+def spurious_rotation(
+    state: State, body: Body, where: Bool[Array, " n"] | None = None, allow_broken: bool = False
+) -> dict[str, Array]:
     """The largest and RMS rotation angle of the particles, ``max_p |theta_p|`` and ``(sum_p
     theta_p^2 / n)^(1/2)`` (radians; ``rotation_angle``), zero for an exact radial motion (its
     ``F`` is symmetric).
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state.
         body: the reference configuration (checked to hold the state's particles).
-        where: one bool per particle to take them over, or ``None`` for all.
+        where: one bool per particle to take them over (an array, or a list of them), or ``None``
+            for all.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``dict(max, rms)``, differentiable, with derivative 0 (not NaN) at ``F = I``.
 
     Raises:
-        ValueError: the state and the body hold different numbers of particles.
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), ``body`` is not a ``Body``, the state and the body hold
+            different numbers of particles, or ``where`` is not one bool per particle.
     """
+    _check_state(state, "spurious_rotation()", allow_broken)
+    _check_body(body)
     _check_particles(state, body)
-    mx, rms = _max_rms(jnp.square(rotation_angle(state)), where)
+    where = _check_where(where, body)
+    mx, rms = _max_rms(jnp.square(_rotation_angle(state.F)), where)
     return dict(max=mx, rms=rms)
 
 
-def vorticity(state: State) -> Float[Array, " n"]:
+def vorticity(state: State, allow_broken: bool = False) -> Float[Array, " n"]:
     """Each particle's vorticity from APIC's affine matrix ``C`` (``C_ab = dv_a / dx_b`` at the
     particle: ``sum_i v_i grad phi_ip^T``, ``transfers.APIC``).
 
     In 2D the signed ``omega = C_10 - C_01``; in 3D the magnitude ``|omega|`` of ``omega = (C_21 -
     C_12, C_02 - C_20, C_10 - C_01)``; in 1D 0. Twice the spin rate; zero for a radial motion.
 
+    The state of a run that broke down is refused unless ``allow_broken`` (as for ``errors``).
+
     Args:
         state: the state of a run with ``transfer=APIC()``.
+        allow_broken: measure the state of a run that broke down too.
 
     Returns:
         ``omega`` (2D) or ``|omega|`` (3D), differentiable (derivative 0, not NaN, at ``omega = 0``).
 
     Raises:
-        ValueError: the state carries no velocity gradient (its ``C`` is ``None``: the transfer is
-            not APIC).
+        ValueError: ``state`` is not one run's ``State`` or is of a run that broke down (and
+            ``allow_broken`` is ``False``), or the state carries no velocity gradient (its ``C`` is
+            ``None``: the transfer is not APIC).
     """
+    _check_state(state, "vorticity()", allow_broken)
     C = state.C
     if C is None:
         raise ValueError(
@@ -832,11 +1078,12 @@ def corner_jacobians(corners: Float[Array, "n corners dim"], body: Body) -> Floa
         The Jacobian at each corner.
 
     Raises:
-        ValueError: ``corners`` do not have ``2^dim`` corners per particle.
+        ValueError: ``body`` is not a ``Body``, or ``corners`` are not the ``2^dim`` corners of each
+            of its particles, shape ``(n, 2^dim, dim)``.
     """
+    _check_body(body)
+    _check_corners(corners, body)
     n, nc, d = corners.shape
-    if nc != 2**d:
-        raise ValueError(f"a particle has 2^dim = {2**d} corners in {d}D, got {nc}")
     signs = corner_signs(d)
     per_corner = []
     for c in range(nc):
@@ -866,6 +1113,9 @@ def folded(corners: Float[Array, "n corners dim"], body: Body) -> Bool[Array, " 
 
     Returns:
         One bool per particle.
+
+    Raises:
+        ValueError: as for ``corner_jacobians``.
     """
     return ~jnp.all(corner_jacobians(corners, body) > 0, axis=1)
 
@@ -879,5 +1129,8 @@ def folded_domains(corners: Float[Array, "n corners dim"], body: Body) -> Int[Ar
 
     Returns:
         The count.
+
+    Raises:
+        ValueError: as for ``corner_jacobians``.
     """
     return jnp.sum(folded(corners, body).astype(jnp.int32))

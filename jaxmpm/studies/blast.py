@@ -260,12 +260,13 @@ def measure(scene, sol, reference) -> dict:
     R = np.asarray(metrics.reference_radius(body, centre))
     at = reference.at(R)
     v_ref, rho_ref, r_ref = (np.asarray(at[k][0]) for k in ("v", "rho", "r"))
-    v_r = np.asarray(metrics.radial_velocity(st, body, centre))
-    rho = np.asarray(metrics.density(st, body, allow_broken=True))  # the row says which state it is
+    # after a breakdown the last good state, measured: the row says which state it is
+    v_r = np.asarray(metrics.radial_velocity(st, body, centre, allow_broken=True))
+    rho = np.asarray(metrics.density(st, body, allow_broken=True))
     r = np.linalg.norm(np.asarray(st.x) - np.asarray(centre)[None, :], axis=1)
     ring = R > float(scene.radius) - RING * float(scene.h)
-    spread = metrics.angular_spread(st, body, centre, bins=scene.cells, detrend=True)
-    corners = metrics.domain_corners(st, body)
+    spread = metrics.angular_spread(st, body, centre, bins=scene.cells, detrend=True, allow_broken=True)
+    corners = metrics.domain_corners(st, body, allow_broken=True)
     v_norm = np.sum(np.abs(v_ref))
     R_line = np.linspace(0.0, float(scene.radius), 401)
     return dict(
@@ -273,7 +274,7 @@ def measure(scene, sol, reference) -> dict:
         rho_L1=_finite(np.sum(np.abs(rho - rho_ref)) / np.sum(np.abs(rho_ref))),
         ring_radius_error=_finite(np.max(np.abs(r[ring] / r_ref[ring] - 1.0))),
         spread_max=_finite(spread["max"]),
-        rotation_max=_finite(metrics.spurious_rotation(st, body)["max"]),
+        rotation_max=_finite(metrics.spurious_rotation(st, body, allow_broken=True)["max"]),
         folded=int(metrics.folded_domains(corners, body)),
         profile=dict(
             R=R,

@@ -147,7 +147,7 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
             t=[float(t) for t in sol.ts],
             gap_own=gaps,
             gap_implied=implied,
-            corners=np.asarray(jm.domain_corners(sol.state, body)).tolist(),
+            corners=np.asarray(jm.domain_corners(sol.state, body, allow_broken=True)).tolist(),
             mid=mid,
             steps_taken=int(sol.state.step),
             failure=fail,
