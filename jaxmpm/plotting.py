@@ -7,6 +7,14 @@ with their last reference.
 
 from __future__ import annotations
 
+import errno
+import os
+import pathlib
+from collections.abc import Mapping
+
+from ._checks import brief, check_bool
+from ._files import write_whole
+
 
 def figure(**kwargs):
     """A new ``matplotlib.figure.Figure``, outside ``pyplot``.
@@ -27,16 +35,100 @@ def figure(**kwargs):
     return Figure(**kwargs)
 
 
-def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | None = None) -> None:
+def _target(path, overwrite) -> tuple[pathlib.Path, str]:  # overwrite: checked here
+    """The file a figure is written to and its format, checked before anything is drawn.
+
+    As ``Figure.savefig`` does, the format is the suffix of ``path`` (any case), or without one
+    matplotlib's default (``savefig.format``, PNG), appended to the name.
+
+    Args:
+        path: the path given.
+        overwrite: replace a file already there.
+
+    Returns:
+        ``(file, format)``.
+
+    Raises:
+        ValueError: ``path`` is not a file name, is a folder or its suffix is not a format
+            matplotlib writes, or ``overwrite`` is not a bool.
+        FileExistsError: the file exists and ``overwrite`` is ``False``.
+        FileNotFoundError: its folder does not exist (``NotADirectoryError``: it is a file).
+    """
+    check_bool("overwrite", overwrite)
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise ValueError(f"path must be a file name (a str or os.PathLike), got {brief(path)}")
+    from matplotlib import rcParams
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    name = os.fspath(path)
+    if isinstance(name, bytes):
+        name = os.fsdecode(name)
+    fmt = os.path.splitext(name)[1][1:].lower()
+    if not fmt:
+        fmt = rcParams["savefig.format"]
+        name = name.rstrip(".") + "." + fmt
+    supported = FigureCanvasBase.get_supported_filetypes()
+    if fmt not in supported:
+        raise ValueError(
+            f"path must end in a figure format matplotlib writes ({', '.join(sorted(supported))}), got {name}"
+        )
+    target = pathlib.Path(name)
+    if target.is_dir():
+        raise ValueError(f"path {target} is a folder, not a file: name the file to write")
+    if not overwrite and os.path.lexists(target):
+        raise FileExistsError(f"{target} already exists: pass overwrite=True to replace it")
+    folder = target.parent
+    if not folder.is_dir():
+        if folder.exists():
+            raise NotADirectoryError(
+                errno.ENOTDIR, f"Not a folder, cannot write {target.name} in it", str(folder)
+            )
+        raise FileNotFoundError(errno.ENOENT, f"No such folder to write {target.name} in", str(folder))
+    return target, fmt
+
+
+def _check_panels(name: str, value, shape: str) -> None:
+    """Refuse ``value`` unless it is a non-empty dict (of ``shape``, for the message)."""
+    if not isinstance(value, Mapping) or not value:
+        raise ValueError(f"{name} must be a non-empty dict {shape}, got {brief(value)}")
+
+
+def _save(fig, target: pathlib.Path, fmt: str, dpi: int) -> None:
+    """Write ``fig`` to ``target`` whole (``write_whole``: a temporary file renamed into place)."""
+    write_whole(target, lambda f: fig.savefig(f, dpi=dpi, format=fmt))
+
+
+def profile_grid(
+    panels,
+    *,
+    ylabel: str,
+    title: str,
+    path,
+    exact_line: float | None = None,
+    overwrite: bool = False,
+) -> pathlib.Path:
     """A grid of along-the-bar profiles.
 
     Args:
-        panels: ``{(row_label, col_label): [(label, X, y, style), ...]}``.
+        panels: ``{(row_label, col_label): [(label, X, y, style), ...]}``, at least one panel.
         ylabel: the y-axis label.
         title: the figure title.
-        path: where to write the PNG.
+        path: where to write the figure, in the format of its suffix (``.png``, ``.pdf``, ``.svg``,
+            ...; without one, PNG and ``.png`` appended, as ``Figure.savefig`` does).
         exact_line: draw a dashed reference line at this y (the manufactured solution).
+        overwrite: replace a file already at ``path`` (else it is refused).
+
+    Returns:
+        The file written.
+
+    Raises:
+        ValueError: ``panels`` is not a non-empty dict; ``path`` is not a file name, is a folder
+            or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
+        FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
+        FileNotFoundError: the folder of ``path`` does not exist.
     """
+    _check_panels("panels", panels, "{(row_label, col_label): [(label, X, y, style), ...]}")
+    target, fmt = _target(path, overwrite)
     rows = list(dict.fromkeys(r for r, _ in panels))
     cols = list(dict.fromkeys(c for _, c in panels))
     fig = figure(figsize=(3.2 * len(cols), 2.8 * len(rows)))
@@ -58,19 +150,35 @@ def profile_grid(panels, *, ylabel: str, title: str, path, exact_line: float | N
     axes[0][0].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    _save(fig, target, fmt, dpi=120)
+    return target
 
 
-def time_series(series, *, ylabel: str, title: str, path, logy: bool = True) -> None:
+def time_series(
+    series, *, ylabel: str, title: str, path, logy: bool = True, overwrite: bool = False
+) -> pathlib.Path:
     """Curves against time, one panel per key of ``series``.
 
     Args:
-        series: ``{panel: [(label, t, y), ...]}``.
+        series: ``{panel: [(label, t, y), ...]}``, at least one panel.
         ylabel: the y-axis label (of the first panel; the panels share it).
         title: the figure title.
-        path: where to write the PNG.
+        path: where to write the figure, in the format of its suffix (``.png``, ``.pdf``, ``.svg``,
+            ...; without one, PNG and ``.png`` appended, as ``Figure.savefig`` does).
         logy: a logarithmic y axis.
+        overwrite: replace a file already at ``path`` (else it is refused).
+
+    Returns:
+        The file written.
+
+    Raises:
+        ValueError: ``series`` is not a non-empty dict; ``path`` is not a file name, is a folder
+            or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
+        FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
+        FileNotFoundError: the folder of ``path`` does not exist.
     """
+    _check_panels("series", series, "{panel: [(label, t, y), ...]}")
+    target, fmt = _target(path, overwrite)
     fig = figure(figsize=(5.0 * len(series), 3.6))
     axes = fig.subplots(1, len(series), sharey=True, squeeze=False)
     for ax, (panel, curves) in zip(axes[0], series.items()):
@@ -85,4 +193,5 @@ def time_series(series, *, ylabel: str, title: str, path, logy: bool = True) -> 
     axes[0][0].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    _save(fig, target, fmt, dpi=120)
+    return target

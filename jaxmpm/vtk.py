@@ -16,6 +16,7 @@ in the x-y plane). The grid file has the grid's nodes along each axis, in VTK's 
 
 from __future__ import annotations
 
+import errno
 import os
 import pathlib
 from collections.abc import Mapping
@@ -24,7 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import check_bool
+from ._checks import brief, check_bool, is_real
 from ._files import write_whole
 from ._util import det
 
@@ -48,22 +49,81 @@ def _be(a: np.ndarray, dtype: str) -> bytes:
     return np.ascontiguousarray(a, dtype=dtype).tobytes()
 
 
+def _check_name(name) -> None:
+    """Refuse a field name that a legacy VTK header cannot hold as one word."""
+    if not isinstance(name, str) or not name or any(c == "%" or not "!" <= c <= "~" for c in name):
+        raise ValueError(
+            f"fields: the name {brief(name)} cannot be written in legacy VTK (its header is split on "
+            "whitespace, and readers decode '%' escapes): a name is one word of printable ASCII "
+            "(letters, digits, punctuation other than '%'), such as 'velocity' or 'internal.J_min'"
+        )
+
+
+def _check_fields(fields, n: int, where: str) -> dict[str, np.ndarray]:
+    """``fields`` as float arrays of ``n`` values each, after checking their names and shapes.
+
+    Args:
+        fields: the point data given.
+        n: the number of points.
+        where: what the points are, for the message (``"particles"``, ``"nodes"``).
+
+    Returns:
+        ``{name: float array}``, in the order given.
+
+    Raises:
+        ValueError: ``fields`` is not a mapping, a name cannot be written (``_check_name``), or a
+            value is not an array of real numbers of shape ``(n,)``, ``(n, 3)`` or ``(n, 9)``.
+    """
+    if not isinstance(fields, Mapping):
+        raise ValueError(f"fields must be a dict of names to arrays, got {brief(fields)}")
+    out = {}
+    for name, a in fields.items():
+        _check_name(name)
+        if not is_real(a):
+            raise ValueError(f"field {name!r} must be an array of real numbers, got {brief(a)}")
+        a = np.asarray(a, dtype=float)
+        if a.ndim == 0:
+            raise ValueError(f"field {name!r} is one number, expected one value for each of the {n} {where}")
+        if a.shape[0] != n:
+            raise ValueError(
+                f"field {name!r} has {a.shape[0]} values, expected one for each of the {n} {where}"
+            )
+        if not (a.ndim == 1 or (a.ndim == 2 and a.shape[1] in (3, 9))):
+            raise ValueError(f"field {name!r}: shape {a.shape} is not (n,), (n, 3) or (n, 9)")
+        out[name] = a
+    return out
+
+
 def _point_data(fields: Mapping[str, np.ndarray], n: int) -> bytes:
+    """The ``POINT_DATA`` section of fields checked by ``_check_fields``."""
     parts = [f"POINT_DATA {n}\n".encode()]
     for name, a in fields.items():
-        a = np.asarray(a, dtype=float)
-        if a.shape[0] != n:
-            raise ValueError(f"field {name!r} has {a.shape[0]} values, expected {n}")
         if a.ndim == 1:
             parts.append(f"SCALARS {name} double 1\nLOOKUP_TABLE default\n".encode())
-        elif a.ndim == 2 and a.shape[1] == 3:
+        elif a.shape[1] == 3:
             parts.append(f"VECTORS {name} double\n".encode())
-        elif a.ndim == 2 and a.shape[1] == 9:
-            parts.append(f"TENSORS {name} double\n".encode())
         else:
-            raise ValueError(f"field {name!r}: shape {a.shape} is not (n,), (n, 3) or (n, 9)")
+            parts.append(f"TENSORS {name} double\n".encode())
         parts.append(_be(a, ">f8") + b"\n")
     return b"".join(parts)
+
+
+def _check_path(path) -> pathlib.Path:
+    """``path`` as a ``pathlib.Path``, or a ``ValueError`` naming it."""
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise ValueError(f"path must be a file name (a str or os.PathLike), got {brief(path)}")
+    return pathlib.Path(path)
+
+
+def _check_positions(x) -> np.ndarray:
+    """The positions ``x`` as a float array ``(n, dim)``, ``dim`` 1 to 3, or a ``ValueError``."""
+    allowed = "x must be the positions, an array of shape (n, dim) with dim 1, 2 or 3"
+    if not is_real(x):
+        raise ValueError(f"{allowed}, got {brief(x)}")
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 2 or not 1 <= x.shape[1] <= 3:
+        raise ValueError(f"{allowed}, got shape {x.shape}")
+    return x
 
 
 def write_particles(
@@ -82,13 +142,21 @@ def write_particles(
         ``path``.
 
     Raises:
-        ValueError: a field of the wrong length or shape, or ``overwrite`` is not a bool.
+        ValueError: ``path`` is not a file name, or is a folder; ``x`` is not an array of shape
+            ``(n, dim)`` with ``dim`` 1 to 3; ``fields`` is not a dict, or a field has a name legacy
+            VTK cannot hold (whitespace, ``%`` or other than printable ASCII), the wrong length or
+            shape; or ``overwrite`` is not a bool.
         FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        FileNotFoundError: the folder of ``path`` does not exist (``NotADirectoryError``: it is a
+            file).
     """
-    path = pathlib.Path(path)
-    _refuse_existing([path], overwrite)
-    x = _pad_vectors(np.asarray(x, dtype=float))
+    path = _check_path(path)
+    x = _check_positions(x)
     n = x.shape[0]
+    fields = _check_fields({} if fields is None else fields, n, "particles")
+    _refuse_existing([path], overwrite)
+    _check_folder(path)
+    x = _pad_vectors(x)
     cells = np.stack([np.ones(n, dtype=np.int64), np.arange(n)], axis=1)
     body = [
         b"# vtk DataFile Version 3.0\njaxmpm particles\nBINARY\nDATASET UNSTRUCTURED_GRID\n",
@@ -99,7 +167,7 @@ def write_particles(
         f"\nCELL_TYPES {n}\n".encode(),
         _be(np.ones(n), ">i4"),  # VTK_VERTEX
         b"\n",
-        _point_data(fields or {}, n),
+        _point_data(fields, n),
     ]
     _write(path, b"".join(body))
     return path
@@ -120,11 +188,22 @@ def write_grid(
         ``path``.
 
     Raises:
-        ValueError: a field of the wrong length or shape, or ``overwrite`` is not a bool.
+        ValueError: ``path`` is not a file name, or is a folder; ``grid`` is not a ``jm.Grid`` of 1
+            to 3 dimensions; ``fields`` is not a dict, or a field has a name legacy VTK cannot hold
+            (whitespace, ``%`` or other than printable ASCII), the wrong length (not one value per
+            node) or shape; or ``overwrite`` is not a bool.
         FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        FileNotFoundError: the folder of ``path`` does not exist (``NotADirectoryError``: it is a
+            file).
     """
-    path = pathlib.Path(path)
+    from .grid import Grid
+
+    path = _check_path(path)
+    if not isinstance(grid, Grid) or not 1 <= grid.dim <= 3:
+        raise ValueError(f"grid must be a jm.Grid of 1, 2 or 3 dimensions (scene.grid()), got {brief(grid)}")
+    fields = _check_fields(fields, grid.n_nodes, "nodes")
     _refuse_existing([path], overwrite)
+    _check_folder(path)
     dim = grid.dim
     shape = list(grid.axes) + [1] * (3 - dim)
     origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
@@ -132,10 +211,9 @@ def write_grid(
     spacing = [h] * dim + [1.0] * (3 - dim)
     if dim > 1:  # VTK runs x fastest; jaxmpm's flat order runs the last axis fastest
         fields = {
-            k: np.asarray(v)
-            .reshape(tuple(grid.axes) + np.shape(v)[1:])
-            .transpose(tuple(reversed(range(dim))) + tuple(range(dim, np.ndim(v) + dim - 1)))
-            .reshape((grid.n_nodes,) + np.shape(v)[1:])
+            k: v.reshape(tuple(grid.axes) + v.shape[1:])
+            .transpose(tuple(reversed(range(dim))) + tuple(range(dim, v.ndim + dim - 1)))
+            .reshape((grid.n_nodes,) + v.shape[1:])
             for k, v in fields.items()
         }
     header = (
@@ -150,13 +228,25 @@ def write_grid(
 
 def _refuse_existing(paths: list[pathlib.Path], overwrite) -> None:  # overwrite: checked here
     """Refuse, before anything is written, to replace a file already at one of ``paths`` unless
-    ``overwrite``."""
+    ``overwrite``, and a folder at one of them (``ValueError``) in any case."""
     check_bool("overwrite", overwrite)
-    if overwrite:
-        return
     for path in paths:
-        if os.path.lexists(path):
+        if path.is_dir():
+            raise ValueError(f"path {path} is a folder, not a file: name the file to write")
+        if not overwrite and os.path.lexists(path):
             raise FileExistsError(f"{path} already exists: pass overwrite=True to replace it")
+
+
+def _check_folder(path: pathlib.Path) -> None:
+    """Refuse, naming it, a folder of ``path`` that is missing or is a file (the temporary file
+    beside ``path`` could not be made there)."""
+    folder = path.parent
+    if not folder.is_dir():
+        if folder.exists():
+            raise NotADirectoryError(
+                errno.ENOTDIR, f"Not a folder, cannot write {path.name} in it", str(folder)
+            )
+        raise FileNotFoundError(errno.ENOENT, f"No such folder to write {path.name} in", str(folder))
 
 
 def _write(path: pathlib.Path, data: bytes) -> None:
@@ -238,35 +328,61 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
 
 
 def write_series(
-    out_dir: str | os.PathLike, model, solution, *, overwrite: bool = False
+    out_dir: str | os.PathLike,
+    model,
+    solution,
+    *,
+    overwrite: bool = False,
+    allow_broken: bool = False,
 ) -> list[pathlib.Path]:
     """One particle file and one grid file per saved time of ``solution`` (run with a ``SaveAt`` that
     keeps ``x``, ``v``, ``F`` and ``sigma``, and ``corners`` for MPQ, ``C`` for APIC), plus
     ``particles.pvd`` and ``grid.pvd``, the collections ParaView opens as time series.
 
-    Saved times after a breakdown, or past ``t_end`` in a run to an end time, repeat the final
-    state and are left out. The final state (after a breakdown, the last good one) is the last
-    frame, added when it falls between saves. A file already in ``out_dir`` under one of the names
-    written is refused unless ``overwrite``, and replaced with it (each file is written whole, then
-    renamed into place); files of other names are left as they are. The model, the solution and the
-    files already there are checked before anything is written.
+    Saved times past ``t_end`` in a run to an end time repeat the final state and are left out. The
+    final state is the last frame, added when it falls between saves. A file already in ``out_dir``
+    under one of the names written is refused unless ``overwrite``, and replaced with it (each file
+    is written whole, then renamed into place); files of other names are left as they are. The
+    model, the solution and the files already there are checked before anything is written.
+
+    A run that broke down is refused unless ``allow_broken``. With it, the frames up to the last good
+    state are written (saved times after the breakdown repeat that state and are left out; the last
+    good state is the last frame), and both ``.pvd`` files say, in an XML comment after their
+    declaration, at which step the run broke down and why (``solution.failure()``).
+
+    The model is checked against what the solution records of its run: the body the model seeds
+    (every field of ``jm.setup(model).body``: positions, domains, masses, volumes, regions), the
+    parts of the state the run carries (APIC's ``C`` for an affine transfer, tracked ``corners``
+    for MPQ, the energy ``e`` and the internal variables), and the initial state (``t = 0``, the
+    first frame of the history): each saved field (``x``, ``v``, ``F``, ``sigma``, ...) against the
+    model's own, up to round-off, which checks the scene's parameters that act at ``t = 0`` (its
+    velocity, its material's stress). A solution does not record the interpolator (beyond whether
+    it tracks corners), the transfer (FLIP and PIC alike), ``artificial_cells``, ``cfl_limit``,
+    ``viscosity``, ``ordering``, ``volume_average``, the grid's padding, nor scene parameters that
+    act only after ``t = 0`` (walls, tractions, body forces): those are not checked, and the grid
+    files are the transfer of the model given.
 
     Args:
         out_dir: the directory to write to (made if missing).
         model: the run (a ``jm.Model``).
         solution: its ``Solution``.
         overwrite: replace the files already in ``out_dir`` under the names written (else refused).
+        allow_broken: write the good frames of a run that broke down, marked as such in the ``.pvd``
+            files (else such a run is refused).
 
     Returns:
         The paths written.
 
     Raises:
         ValueError: the solution has no history, or its history lacks a field the files need; it
-            holds a batch (an ensemble's); the model is not the solution's run; ``out_dir`` is a
-            file; or ``overwrite`` is not a bool.
+            holds a batch (an ensemble's); it broke down and ``allow_broken`` is ``False``; the
+            model is not the solution's run (as far as the solution records it, above); its
+            internal variables have names legacy VTK cannot hold; ``out_dir`` is a file, or a folder
+            is there under a name to write; or ``overwrite`` or ``allow_broken`` is not a bool.
         FileExistsError: a file to write is already in ``out_dir`` and ``overwrite`` is ``False``.
     """
     check_bool("overwrite", overwrite)
+    check_bool("allow_broken", allow_broken)
     if solution.history is None:
         raise ValueError(
             "write_series needs a solution with a history: simulate(..., saveat=SaveAt(every=k))"
@@ -276,6 +392,18 @@ def write_series(
             f"write_series writes one run, and this solution holds a batch (x of shape "
             f"{tuple(solution.state.x.shape)}): write each member (Ensemble.member(i))"
         )
+    failure = solution.failure()
+    if failure is not None and not allow_broken:
+        raise ValueError(
+            f"write_series writes a finished run, and this one broke down at step {failure['step']} "
+            f"({' and '.join(failure['quantities'])}): its state is the last good one, at step "
+            f"{int(solution.state.step)} (t = {float(solution.state.t):.6g}). Pass allow_broken=True to "
+            "write its good frames, marked as a breakdown in the .pvd files"
+        )
+    from ._step import initial_state, setup
+
+    prepared = eqx.filter_jit(setup)(model)  # once for the series: the grid and the body do not change
+    _check_same_run(model, prepared, solution)
     needed = ["x", "v", "F", "sigma"]
     needed += ["corners"] if model.interpolator.tracks_corners else []
     needed += ["C"] if model.transfer.affine else []
@@ -284,6 +412,9 @@ def write_series(
     missing = [f for f in needed if f not in solution.history]
     if missing:
         raise ValueError(f"the saved history lacks {missing}: add them to SaveAt(fields=...)")
+    for k in solution.state.internal or {}:
+        _check_name(f"internal.{k}")
+    _check_initial_state(solution, eqx.filter_jit(initial_state)(model, prepared))
     ts = np.asarray(solution.ts)
     t_last = float(solution.state.t)
     keep = []  # saved times up to the final state's, each once (a run to t_end, or a broken run,
@@ -293,16 +424,6 @@ def write_series(
     frames = [(ts[i], _state_at(solution, i)) for i in keep]
     if not keep or t_last > ts[keep[-1]] * (1 + 1e-12):
         frames.append((t_last, solution.state))
-    from ._step import setup
-
-    prepared = eqx.filter_jit(setup)(model)  # once for the series: the grid and the body do not change
-    X, X_model = np.asarray(solution.body.X), np.asarray(prepared.body.X)
-    if X.shape != X_model.shape or not np.allclose(X, X_model, rtol=1e-12, atol=0.0):
-        raise ValueError(
-            f"the model is not the solution's run: its body has {X_model.shape[0]} particles in "
-            f"{X_model.shape[1]}D, the solution's {X.shape[0]} in {X.shape[1]}D (or at other reference "
-            "positions)"
-        )
     out = pathlib.Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out_dir {out_dir} is a file, not a folder")
@@ -323,13 +444,97 @@ def write_series(
         entries["particles"].append((t, p.name))
         entries["grid"].append((t, g.name))
     for kind, items in entries.items():
-        lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
+        lines = ['<?xml version="1.0"?>']
+        lines += [] if failure is None else [_breakdown_comment(failure, solution.state)]
+        lines += ['<VTKFile type="Collection" version="0.1">', "<Collection>"]
         lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
         lines += ["</Collection>", "</VTKFile>", ""]
         pvd = out / f"{kind}.pvd"
         _write(pvd, "\n".join(lines).encode())
         paths.append(pvd)
     return paths
+
+
+def _breakdown_comment(failure: dict, state) -> str:
+    """The XML comment of a ``.pvd`` file that says the series ends at a breakdown."""
+    text = (
+        f"jaxmpm: the run broke down at step {failure['step']} ({' and '.join(failure['quantities'])}; "
+        f"first at particle {failure['particle']}): the last frame is its last good state, step "
+        f"{int(state.step)}, t = {float(state.t)!r}, not the end of the run"
+    )
+    return f"<!-- {text.replace('--', '- -')} -->"
+
+
+def _differs(a, b) -> bool:
+    """Whether two arrays differ in shape or beyond round-off (4096 ulps of their scale)."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape:
+        return True
+    if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(b.dtype, np.floating)):
+        return not np.array_equal(a, b)
+    eps = max(np.finfo(d).eps for d in (a.dtype, b.dtype) if np.issubdtype(d, np.floating))
+    finite = np.abs(b[np.isfinite(b)])
+    scale = float(np.max(finite)) if finite.size else 0.0
+    return not np.allclose(a, b, rtol=4096 * eps, atol=4096 * eps * scale, equal_nan=True)
+
+
+def _check_same_run(model, prepared, solution) -> None:
+    """Refuse a model whose body or carried state parts are not those of the solution's run."""
+    X, X_model = np.asarray(solution.body.X), np.asarray(prepared.body.X)
+    if X.shape != X_model.shape:
+        raise ValueError(
+            f"the model is not the solution's run: its body has {X_model.shape[0]} particles in "
+            f"{X_model.shape[1]}D, the solution's {X.shape[0]} in {X.shape[1]}D"
+        )
+    for name in ("X", "r0", "m", "V0", "X_corners", "corner_ids", "boundary", "region"):
+        mine, theirs = getattr(prepared.body, name), getattr(solution.body, name)
+        if (mine is None) != (theirs is None) or (mine is not None and _differs(mine, theirs)):
+            raise ValueError(
+                f"the model is not the solution's run: the body it seeds differs in {name} (Body.{name}: "
+                "another scene, or other scene parameters)"
+            )
+    state = solution.state
+    carried = (
+        ("C", model.transfer.affine, f"its transfer {type(model.transfer).__name__}"),
+        (
+            "corners",
+            model.interpolator.tracks_corners,
+            f"its interpolator {type(model.interpolator).__name__}",
+        ),
+    )
+    for name, needs, what in carried:
+        if needs != (getattr(state, name) is not None):
+            has = "carries" if needs else "does not carry"
+            ran = "did not" if needs else "did"
+            raise ValueError(
+                f"the model is not the solution's run: {what} {has} {name}, and the solution's run {ran}"
+            )
+
+
+def _check_initial_state(solution, init) -> None:
+    """Refuse a model whose initial state differs from the first frame (``t = 0``) of the history."""
+    from ._simulate import STATE_FIELDS, save_fields
+
+    state = solution.state
+    if (init.e is None) != (state.e is None):
+        has = "has" if init.e is not None else "has no"
+        raise ValueError(
+            f"the model is not the solution's run: its material {has} an energy equation (e), and the "
+            f"solution's run {'did not' if init.e is not None else 'did'}"
+        )
+    if sorted(init.internal or {}) != sorted(state.internal or {}):
+        raise ValueError(
+            f"the model is not the solution's run: its internal variables are {sorted(init.internal or {})}, "
+            f"the solution's {sorted(state.internal or {})}"
+        )
+    if float(np.asarray(solution.ts)[0]) != 0.0:  # a history that does not start at t = 0
+        return
+    for name, value in save_fields(init, STATE_FIELDS).items():
+        if name in solution.history and _differs(value, solution.history[name][0]):
+            raise ValueError(
+                f"the model is not the solution's run: its initial {name} differs from the solution's "
+                "(the first frame, t = 0): other scene parameters, or another scene"
+            )
 
 
 def _state_at(solution, i: int):

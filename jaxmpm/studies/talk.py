@@ -215,6 +215,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
                 path=path,
                 exact_line=1.0 if qty == "F" else 0.0,
                 title=f"Gas expansion u = beta t X at t = {t:g} s: {ylabel} along the bar",
+                overwrite=True,  # a rerun of the study replaces its own figures
             )
             paths.append(path)
     beta = max(betas)
@@ -234,6 +235,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
         ylabel="max |x_{p+1} - x_p - (F_{p+1} + F_p) r0| / (2 r0)",
         path=path,
         title=f"Domain separation over time, beta = {beta:g} 1/s",
+        overwrite=True,
     )
     paths.append(path)
     return paths
