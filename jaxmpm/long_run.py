@@ -687,13 +687,17 @@ def run_timed(
     )
 
 
-def _check_out(out, *, overwrite: bool, own: pathlib.Path | None = None) -> pathlib.Path:
+def _check_out(
+    out, *, overwrite: bool, own: pathlib.Path | None = None, option: str | None = None
+) -> pathlib.Path:
     """``out`` as a path, once it is known that the run can be written there without losing a file.
 
     Args:
         out: the file to write.
         overwrite: whether an existing ``out`` may be replaced.
         own: the saved run being resumed: ``out`` may be it.
+        option: the command-line option that gave ``out`` (``"--out"``), for messages in its terms
+            (``--overwrite``); ``None`` for the keywords of ``run``.
 
     Returns:
         ``out`` as a ``pathlib.Path``.
@@ -705,15 +709,16 @@ def _check_out(out, *, overwrite: bool, own: pathlib.Path | None = None) -> path
     if not isinstance(out, (str, os.PathLike)):
         raise ValueError(f"out must be a file path (a str or os.PathLike), got {out!r}")
     path = pathlib.Path(out)
+    named = f"out={path}" if option is None else f"{option} {path}"
     if path.is_dir():
         raise ValueError(
-            f"out={path} is a folder, not a file; give a file to write the run to, e.g. {path / 'run.npz'}"
+            f"{named} is a folder, not a file; give a file to write the run to, e.g. {path / 'run.npz'}"
         )
     folder = path.parent
     if not folder.exists():
-        raise ValueError(f"out={path}: the folder {folder} does not exist (create it first)")
+        raise ValueError(f"{named}: the folder {folder} does not exist (create it first)")
     if not folder.is_dir():
-        raise ValueError(f"out={path}: {folder} is not a folder")
+        raise ValueError(f"{named}: {folder} is not a folder")
     if (
         (path.exists() or path.is_symlink())
         and not overwrite
@@ -721,16 +726,17 @@ def _check_out(out, *, overwrite: bool, own: pathlib.Path | None = None) -> path
     ):
         what = _describe(path)
         hint = f", or continue it with `jaxmpm resume {path}`" if what.startswith("a jaxmpm") else ""
+        how = "overwrite=True (`--overwrite` on the command line)" if option is None else "--overwrite"
         raise ValueError(
-            f"{path} already exists ({what}) and would be overwritten: pass overwrite=True "
-            f"(`--overwrite` on the command line) to replace it{hint}, or choose another file"
+            f"{path if option is None else named} already exists ({what}) and would be overwritten: "
+            f"pass {how} to replace it{hint}, or choose another file"
         )
     try:  # the save writes FILE.tmp next to FILE and renames it: the folder itself must be writable
         fd, probe = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".probe")
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise ValueError(f"out={path}: cannot write in the folder {folder} ({e.strerror or e})") from None
+        raise ValueError(f"{named}: cannot write in the folder {folder} ({e.strerror or e})") from None
     return path
 
 

@@ -16,9 +16,11 @@ in the x-y plane). The grid file has the grid's nodes along each axis, in VTK's 
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import pathlib
+import secrets
 from collections.abc import Mapping
 
 import equinox as eqx
@@ -234,7 +236,12 @@ def _refuse_existing(paths: list[pathlib.Path], overwrite) -> None:  # overwrite
         if path.is_dir():
             raise ValueError(f"path {path} is a folder, not a file: name the file to write")
         if not overwrite and os.path.lexists(path):
-            raise FileExistsError(f"{path} already exists: pass overwrite=True to replace it")
+            raise _exists(path)
+
+
+def _exists(path: pathlib.Path) -> FileExistsError:
+    """The refusal of a file already at ``path``."""
+    return FileExistsError(f"{path} already exists: pass overwrite=True to replace it")
 
 
 def _check_folder(path: pathlib.Path) -> None:
@@ -341,8 +348,10 @@ def write_series(
 
     Saved times past ``t_end`` in a run to an end time repeat the final state and are left out. The
     final state is the last frame, added when it falls between saves. A file already in ``out_dir``
-    under one of the names written is refused unless ``overwrite``, and replaced with it (each file
-    is written whole, then renamed into place); files of other names are left as they are. The
+    under one of the names written is refused unless ``overwrite``, and replaced with it; files of
+    other names are left as they are. Every file is written under a temporary name, and the files are
+    renamed into place once all are written: a write that fails (a full disk, Ctrl-C) removes what
+    it wrote and leaves ``out_dir`` as it was (a folder it made is removed again). The
     model, the solution and the files already there are checked before anything is written.
 
     A run that broke down is refused unless ``allow_broken``. With it, the frames up to the last good
@@ -429,30 +438,64 @@ def write_series(
         raise ValueError(f"out_dir {out_dir} is a file, not a folder")
     names = [f"{kind}_{frame:05d}.vtk" for frame in range(len(frames)) for kind in ("particles", "grid")]
     _refuse_existing([out / name for name in names + ["particles.pvd", "grid.pvd"]], overwrite)
+    made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
-    paths, entries = [], {"particles": [], "grid": []}
-    for frame, (t, state) in enumerate(frames):
-        fields = particle_fields(state, solution.body)
-        p = write_particles(out / f"particles_{frame:05d}.vtk", state.x, fields, overwrite=overwrite)
-        g = write_grid(
-            out / f"grid_{frame:05d}.vtk",
-            prepared.grid,
-            nodal_fields(model, state, prepared),
-            overwrite=overwrite,
-        )
-        paths += [p, g]
-        entries["particles"].append((t, p.name))
-        entries["grid"].append((t, g.name))
-    for kind, items in entries.items():
-        lines = ['<?xml version="1.0"?>']
-        lines += [] if failure is None else [_breakdown_comment(failure, solution.state)]
-        lines += ['<VTKFile type="Collection" version="0.1">', "<Collection>"]
-        lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
-        lines += ["</Collection>", "</VTKFile>", ""]
-        pvd = out / f"{kind}.pvd"
-        _write(pvd, "\n".join(lines).encode())
-        paths.append(pvd)
-    return paths
+    tag = f"{os.getpid()}-{secrets.token_hex(4)}"
+    staged: list[tuple[pathlib.Path, pathlib.Path]] = []  # (written under a temporary name, its name)
+    placed: list[pathlib.Path] = []
+
+    def stage(name: str) -> pathlib.Path:
+        staged.append((out / f".{name}.{tag}.stage", out / name))
+        return staged[-1][0]
+
+    try:
+        entries = {"particles": [], "grid": []}
+        for frame, (t, state) in enumerate(frames):
+            fields = particle_fields(state, solution.body)
+            p, g = f"particles_{frame:05d}.vtk", f"grid_{frame:05d}.vtk"
+            write_particles(stage(p), state.x, fields)
+            write_grid(stage(g), prepared.grid, nodal_fields(model, state, prepared))
+            entries["particles"].append((t, p))
+            entries["grid"].append((t, g))
+        for kind, items in entries.items():
+            lines = ['<?xml version="1.0"?>']
+            lines += [] if failure is None else [_breakdown_comment(failure, solution.state)]
+            lines += ['<VTKFile type="Collection" version="0.1">', "<Collection>"]
+            lines += [f'<DataSet timestep="{float(t)!r}" file="{name}"/>' for t, name in items]
+            lines += ["</Collection>", "</VTKFile>", ""]
+            _write(stage(f"{kind}.pvd"), "\n".join(lines).encode())
+        for tmp, path in staged:  # every file is written: now into place, the .pvd files last
+            _place(tmp, path, overwrite)
+            placed.append(path)
+    except BaseException:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+        if not overwrite:  # the files placed are this call's own (none was there): remove them too
+            for path in placed:
+                path.unlink(missing_ok=True)
+        if made:
+            with contextlib.suppress(OSError):  # not empty: it holds what someone else put there
+                out.rmdir()
+        raise
+    return [path for _, path in staged]
+
+
+def _place(tmp: pathlib.Path, path: pathlib.Path, overwrite: bool) -> None:
+    """Rename the written file ``tmp`` to ``path``; without ``overwrite``, never over a file there
+    (a hard link fails on one; where the file system has none, checked just before the rename)."""
+    if overwrite:
+        os.replace(tmp, path)
+        return
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise _exists(path) from None
+    except OSError:  # no hard links here (FAT, some network file systems)
+        if os.path.lexists(path):
+            raise _exists(path) from None
+        os.replace(tmp, path)
+        return
+    tmp.unlink()
 
 
 def _breakdown_comment(failure: dict, state) -> str:

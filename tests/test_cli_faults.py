@@ -417,24 +417,6 @@ def test_a_study_that_draws_figures_checks_for_matplotlib_first(capsys, tmp_path
     assert ran == ["convergence"]
 
 
-def test_a_full_disk_while_saving_a_run_is_one_line(capsys, tmp_path, monkeypatch):
-    import errno
-
-    out = tmp_path / "run.npz"
-    mine = tmp_path / "run.npz.tmp"
-    mine.write_text("MINE")  # a file of the user's beside the run: never written over
-
-    def full(f, **arrays):
-        f.write(b"PK\x03\x04 half an archive")
-        raise OSError(errno.ENOSPC, "No space left on device")
-
-    monkeypatch.setattr(long_run.np, "savez", full)
-    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "4", "--no-progress"]
-    line = usage(capsys, small + ["--out", str(out)], f"cannot write {out}")
-    assert "No space left on device" in line and not out.exists()
-    assert [p.name for p in tmp_path.iterdir()] == ["run.npz.tmp"] and mine.read_text() == "MINE"
-
-
 def test_a_run_of_zero_steps_writes_its_one_frame(capsys, tmp_path):
     frames = tmp_path / "frames"
     argv = ["run", "gas-expansion", "--interpolator", "mpq", "--dt", "1e-5", "--steps", "0"]

@@ -229,13 +229,18 @@ def viscosity(text: str | None) -> jm.ArtificialViscosity | None:
     """
     if text is None:
         return None
+    allowed = "--viscosity must be QUAD,LIN or QUAD,LIN,SHEAR (numbers >= 0)"
+    items = text.split(",")
+    if len(items) not in (2, 3):
+        raise UsageError(f"{allowed}, got {text!r} ({len(items)} number{'s' if len(items) > 1 else ''})")
+    values = []
+    for item in items:
+        try:
+            values.append(float(item))
+        except ValueError:
+            raise UsageError(f"{allowed}, got {text!r} ({item.strip()!r} is not a number)") from None
+    shear = values[2] if len(values) == 3 else None
     try:
-        values = [float(c) for c in text.split(",")]
-        if len(values) not in (2, 3):
-            raise ValueError(f"{len(values)} numbers")
-        shear = values[2] if len(values) == 3 else None
         return jm.ArtificialViscosity(c_quad=values[0], c_lin=values[1], c_shear=shear)
     except ValueError as e:
-        raise UsageError(
-            f"--viscosity must be QUAD,LIN or QUAD,LIN,SHEAR (numbers >= 0), got {text!r}: {e}"
-        ) from None
+        raise UsageError(f"{allowed}, got {text!r}: {e}") from None

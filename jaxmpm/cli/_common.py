@@ -1,5 +1,5 @@
-"""What the subcommands share: the argument parser, the two failures with their exit statuses (bad
-input: 2, a run that broke down: 3), and JSON output."""
+"""What the subcommands share: the argument parser, the failures with their exit statuses (bad
+input: 2, a run that broke down: 3, output that cannot be written: 74), and JSON output."""
 
 import argparse
 import os
@@ -14,10 +14,25 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 
 _ASSIGNMENT = re.compile(r"^[A-Za-z_]\w*=")  # a scene parameter, name=value
+_NUMBER = r"(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # a number without its sign
 
 
 class UsageError(Exception):
     """Bad input from the command line: one line, exit status 2."""
+
+
+class CannotWrite(Exception):
+    """Output that cannot be written (a full disk, a folder taken away, a read-only file system): one
+    line ``cannot write WHAT: REASON``, exit status 74 (``EX_IOERR`` of ``sysexits.h``).
+
+    Args:
+        what: what was being written, as the user named it (``"--out run.npz"``, ``"--vtk frames"``,
+            ``"standard output"``).
+        error: the ``OSError``.
+    """
+
+    def __init__(self, what: str, error: OSError):
+        super().__init__(f"cannot write {what}: {error.strerror or error}")
 
 
 class _StoreOnce(argparse._StoreAction):
@@ -37,13 +52,15 @@ class Parser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are one ``UsageError`` line (no usage dump, no traceback).
 
     argparse takes ``-1e-5`` for an option (its matcher has no exponent); this one reads it as a
-    number, so that the check that follows can say "dt must be > 0", not "expected one argument".
+    number, and ``-1,0.2`` as a list of numbers, so that the check that follows can say "dt must be
+    > 0", not "expected one argument".
     An option that takes a value may be given once (argparse keeps the last of several).
     """
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+        # a negative number, or a comma-separated list that starts with one (--viscosity -1,0.2)
+        self._negative_number_matcher = re.compile(rf"^-{_NUMBER}(,[-+]?{_NUMBER})*$")
         self.register("action", None, _StoreOnce)
         self.register("action", "store", _StoreOnce)
 
@@ -72,7 +89,9 @@ class Parser(argparse.ArgumentParser):
         return args
 
     def error(self, message):
-        """Raise ``UsageError(message)`` instead of printing the usage and exiting.
+        """Raise ``UsageError(message)`` instead of printing the usage and exiting; argparse's list of
+        missing arguments is said in words (``jaxmpm run needs a scene name (see `jaxmpm scenes`) and
+        --interpolator, one of ...``).
 
         Args:
             message: argparse's description of what is wrong.
@@ -80,7 +99,32 @@ class Parser(argparse.ArgumentParser):
         Raises:
             UsageError: always.
         """
+        missing = message.removeprefix("the following arguments are required: ")
+        if missing != message:
+            needed = [self._needed(name.strip()) for name in missing.split(",")]
+            needed = [n for n in needed if n is not None]
+            if needed:
+                message = f"{self.prog} needs " + (
+                    needed[0] if len(needed) == 1 else ", ".join(needed[:-1]) + " and " + needed[-1]
+                )
         raise UsageError(message)
+
+    def _needed(self, name: str) -> str | None:
+        """A missing argument in words, ``None`` for a list that may be empty (``name=value ...``)."""
+        for action in self._actions:
+            if name in action.option_strings:
+                if action.choices:
+                    return f"{name} (one of {', '.join(map(str, action.choices))})"
+                return f"{name} {action.metavar or action.dest.upper()}"
+            if not action.option_strings and name in (action.metavar, action.dest):
+                if action.nargs in ("*", argparse.REMAINDER):
+                    return None
+                if action.choices:  # the subcommands
+                    return f"a {name} (one of {', '.join(action.choices)})"
+                if not action.help:
+                    return name
+                return action.help if action.help.startswith(("a ", "an ", "the ")) else "a " + action.help
+        return name
 
 
 class Breakdown(Exception):
@@ -269,6 +313,7 @@ def start_processes(args) -> bool:
                 f"--processes must be >= 1 and --process-id from 0 to {args.processes - 1}, got "
                 f"--processes {args.processes} --process-id {args.process_id}"
             )
+        _check_coordinator(args.coordinator)
         kwargs = dict(
             coordinator_address=args.coordinator, num_processes=args.processes, process_id=args.process_id
         )
@@ -296,6 +341,24 @@ def start_processes(args) -> bool:
         os.dup2(quiet, 2)
         sys.stdout = sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the rest of this process
     return first
+
+
+def _check_coordinator(address: str) -> None:
+    """``--coordinator HOST:PORT``: a host name or address (an IPv6 one in brackets, ``[::1]:1234``)
+    and a port from 1 to 65535.
+
+    Raises:
+        UsageError: not of that form.
+    """
+    host, sep, port = address.rpartition(":")
+    ok = bool(sep) and bool(host.strip()) and port.isdigit() and 1 <= int(port) <= 65535
+    if ok and ":" in host:  # an IPv6 address is written in brackets
+        ok = host.startswith("[") and host.endswith("]") and len(host) > 2
+    if not ok:
+        raise UsageError(
+            f"--coordinator must be HOST:PORT (a host name or address and a port from 1 to 65535, "
+            f"e.g. node0:1234), got {address!r}"
+        )
 
 
 def devices_option(args) -> int | None:

@@ -1,8 +1,9 @@
 """``jaxmpm resume``: continue a run saved with ``jaxmpm run --out FILE``.
 
 Exit statuses: 0; 2 for a file that is missing or is not a saved run this jaxmpm can continue (one
-line naming the file and what is wrong); 3 for a run that broke down; 130 for Ctrl-C, after saving
-the last finished chunk to the file (one line saying at which step).
+line naming the file and what is wrong); 3 for a run that broke down; 74 for a save that cannot be
+written (a full disk: the previous save is intact); 130 for Ctrl-C, after saving the last finished
+chunk to the file (one line saying at which step).
 """
 
 import pathlib
@@ -10,7 +11,14 @@ import sys
 
 import jaxmpm as jm
 
-from ._common import Breakdown, UsageError, add_process_options, local_solution, start_processes
+from ._common import (
+    Breakdown,
+    CannotWrite,
+    UsageError,
+    add_process_options,
+    local_solution,
+    start_processes,
+)
 from .run import report
 
 
@@ -40,8 +48,8 @@ def command(args) -> int:
         line on stderr saying so).
 
     Raises:
-        UsageError: no such file, or not a saved run (one line naming the file and what is wrong);
-            or the file cannot be written.
+        UsageError: no such file, or not a saved run (one line naming the file and what is wrong).
+        CannotWrite: the file cannot be written (the previous save is intact).
         Breakdown: the run broke down (now, or before it was saved).
     """
     first = start_processes(args)
@@ -55,7 +63,7 @@ def command(args) -> int:
     except (FileNotFoundError, ValueError) as e:
         raise UsageError(_one_line(e)) from None
     except OSError as e:  # e.g. the disk filled up while saving: the previous save is intact
-        raise UsageError(f"cannot write {args.file}: {e.strerror or e}") from None
+        raise CannotWrite(args.file, e) from None
     except jm.SimulationError as e:
         meta = jm.long_run.load(args.file)[1]  # saved with the failure
         failed = local_solution(e.solution)

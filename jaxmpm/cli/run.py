@@ -1,5 +1,6 @@
 """``jaxmpm run``: run a scene and report its errors (a table, or one JSON object)."""
 
+import contextlib
 import dataclasses
 import pathlib
 import re
@@ -13,11 +14,12 @@ import jaxmpm as jm
 from jaxmpm import _memory
 from jaxmpm._simulate import advance, failure_message, finish_to_end, prepare
 from jaxmpm._step import shard_particles
-from jaxmpm.long_run import wait
+from jaxmpm.long_run import _check_out, wait
 
 from . import _assign
 from ._common import (
     Breakdown,
+    CannotWrite,
     UsageError,
     add_process_options,
     devices_option,
@@ -47,7 +49,7 @@ def add_parser(subparsers) -> None:
     """
     p = subparsers.add_parser("run", help="run a scene and report its errors")
     p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
-    p.add_argument("params", nargs="*", metavar="name=value", help="scene parameters")
+    p.add_argument("params", nargs="*", default=[], metavar="name=value", help="scene parameters")
     p.add_argument(
         "--interpolator",
         required=True,
@@ -130,10 +132,7 @@ def command(args) -> int:
     names = None
     if args.grad is not None:
         names = _assign.comma_list(args.grad)
-        try:
-            jm.sensitivity.check_names(scene, names)
-        except ValueError as e:
-            raise UsageError(f"--grad: {e}") from None
+        _check_grad(scene, names)
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
     viscosity = _assign.viscosity(args.viscosity)
@@ -185,6 +184,12 @@ def command(args) -> int:
         fields = ("x", "v", "F", "sigma") + (("corners",) if interp.tracks_corners else ())
         fields += ("e", "internal") if scene.regions is not None else ()  # kept where the run has them
         settings["saveat"] = jm.SaveAt(every=every, fields=fields + (("C",) if transfer.affine else ()))
+    if args.out is not None:
+        try:
+            _check_out(args.out, overwrite=args.overwrite, option="--out")
+        except ValueError as e:
+            raise UsageError(str(e)) from None
+    vtk_made = args.vtk is not None and not pathlib.Path(args.vtk).exists()
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
     progress = False if args.no_progress or not first else None
@@ -208,15 +213,16 @@ def command(args) -> int:
                 _breakdown_json(args, scene, failed, viscosity)
                 raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
             except OSError as e:  # e.g. the disk filled up while saving: a checkpoint before it is intact
-                raise UsageError(f"cannot write {args.out}: {e.strerror or e}") from None
+                raise CannotWrite(f"--out {args.out}", e) from None
         else:
             try:
                 sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
             except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
                 failed = local_solution(e.solution)
+                vtk = None
                 if args.vtk is not None and first:
-                    _write_vtk(args.vtk, scene, interp, settings, failed, args.overwrite)
-                _breakdown_json(args, scene, failed, viscosity)
+                    vtk = _write_vtk(args, scene, interp, settings, failed, vtk_made)
+                _breakdown_json(args, scene, failed, viscosity, vtk)
                 raise Breakdown(failed, dt=args.dt) from None
     except ValueError as e:
         raise UsageError(str(e)) from None
@@ -226,7 +232,7 @@ def command(args) -> int:
         t0 = time.perf_counter()
         try:
             g = jm.gradient(scene, interp, names, dt=args.dt, steps=args.steps, checkpoint=True, **settings)
-        except ValueError as e:
+        except ValueError as e:  # _check_grad has refused what it can before the run
             raise UsageError(f"--grad: {e}") from None
         grad = {n: float(g[n]) for n in names}
         grad_s = time.perf_counter() - t0
@@ -234,8 +240,7 @@ def command(args) -> int:
     if settings["devices"] is not None:
         run["devices"] = settings["devices"]
     if args.vtk is not None and first:
-        paths = _write_vtk(args.vtk, scene, interp, settings, sol, args.overwrite)
-        run["vtk"] = dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
+        run["vtk"] = _write_vtk(args, scene, interp, settings, sol, vtk_made)
     return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
 
 
@@ -294,11 +299,29 @@ def _advance(model, state, dt, limit, chunk: int):
     return advance(model, jm.setup(model), state, dt, chunk, jm.SaveAt(), None, limit)[0]
 
 
-def _breakdown_json(args, scene, sol, viscosity) -> None:
+def _breakdown_json(args, scene, sol, viscosity, vtk: dict | None = None) -> None:
     """With ``--json``, the report of a run that broke down (its last good state, ``status`` and
-    ``failure``) on stdout, before the one line on stderr."""
+    ``failure``, and ``vtk``: the frames written up to it) on stdout, before the one line on stderr."""
     if args.json:
-        report(_settings(args, sol, viscosity), scene, sol, None, None, as_json=True)
+        run = _settings(args, sol, viscosity)
+        if vtk is not None:
+            run["vtk"] = vtk
+        report(run, scene, sol, None, None, as_json=True)
+
+
+def _check_grad(scene, names: list[str]) -> None:
+    """``--grad NAMES`` before the run: the scene has an exact solution (``F_rms_rel`` is the error
+    against it) and each name is one of its continuous parameters, ``h`` or ``dt``."""
+    if scene.exact is None:
+        having = [name for name, cls in jm.SCENES.items() if cls.exact is not None]
+        raise UsageError(
+            f"--grad gives d(F_rms_rel)/d(NAME), F_rms_rel being the error against the scene's exact "
+            f"solution, and {scene.name} has none; scenes with one: {', '.join(having)}"
+        )
+    try:
+        jm.sensitivity.check_names(scene, names)
+    except ValueError as e:
+        raise UsageError(f"--grad: {e}") from None
 
 
 def _settings(args, sol, viscosity) -> dict:
@@ -333,27 +356,50 @@ def _check_vtk_folder(folder, overwrite: bool) -> None:
         )
 
 
-def _write_vtk(out_dir, scene, interp, settings, sol, overwrite: bool):
-    """Write the run's ParaView series to ``out_dir``, then remove the frames of an earlier series
+def _write_vtk(args, scene, interp, settings, sol, made: bool) -> dict:
+    """Write the run's ParaView series to ``--vtk DIR``, then remove the frames of an earlier series
     there (``--overwrite``) that the new one does not replace, so that the folder holds one run.
 
+    A series that cannot be written whole leaves the folder as it was (``jm.vtk.write_series``), and a
+    folder this command made for it is removed again, so that the command can be run again as is.
+
+    Args:
+        args: the parsed command line.
+        scene, interp, settings: the run.
+        sol: its solution (of a run that broke down: the good frames are written).
+        made: the folder did not exist before this command.
+
+    Returns:
+        The ``vtk`` entry of the report: ``dir``, ``frames``, ``every``.
+
     Raises:
-        UsageError: a file cannot be written, or (without ``overwrite``) one to write is there
-            already (put there during the run: ``_check_vtk_folder`` found none before it).
+        UsageError: (without ``--overwrite``) a file to write is there already (put there during the
+            run: ``_check_vtk_folder`` found none before it).
+        CannotWrite: a file cannot be written (a full disk).
     """
+    out_dir = pathlib.Path(args.vtk)
     keys = ("transfer", "artificial_cells", "cfl_limit", "ordering", "viscosity")
     model = jm.Model(scene, interp, **{k: settings[k] for k in keys})
     try:
         # a run that broke down writes its good frames (marked so in the .pvd files); the breakdown
         # itself is reported by the caller
-        paths = jm.vtk.write_series(out_dir, model, sol, overwrite=overwrite, allow_broken=True)
-        written = {p.name for p in paths}
-        for old in pathlib.Path(out_dir).iterdir():
-            if old.name not in written and _FRAME.fullmatch(old.name):
-                old.unlink()
+        paths = jm.vtk.write_series(out_dir, model, sol, overwrite=args.overwrite, allow_broken=True)
+    except FileExistsError:
+        raise UsageError(
+            f"--vtk {args.vtk}: a file of the series appeared there during the run (another run writing "
+            "there?); pass --overwrite to replace it, or choose another folder"
+        ) from None
     except OSError as e:
-        raise UsageError(f"--vtk {out_dir}: cannot write there ({e.strerror or e})") from None
-    return paths
+        if made:
+            with contextlib.suppress(OSError):  # only if empty: what someone else put there stays
+                out_dir.rmdir()
+        raise CannotWrite(f"--vtk {args.vtk}", e) from None
+    written = {p.name for p in paths}
+    for old in out_dir.iterdir():
+        if old.name not in written and _FRAME.fullmatch(old.name):
+            with contextlib.suppress(FileNotFoundError):
+                old.unlink()
+    return dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
 
 
 _FRAME = re.compile(r"(particles|grid)_\d{5,}\.vtk")
@@ -395,13 +441,19 @@ def report(
     where = None
     if scene.regions is not None and float(st.t) > 0:
         where = jm.metrics.smooth_mask(scene, sol.body, st.t)
+    # Before the front has moved far enough in, no particle is away from it: nothing to measure yet.
+    unmeasured = where is not None and not bool(np.any(np.asarray(where)))
     # After a breakdown this is the last good state's report, and it says so (status, failure).
-    err = jm.errors(scene, st, sol.body, where=where, allow_broken=True)
+    err = jm.errors(scene, st, sol.body, where=None if unmeasured else where, allow_broken=True)
     # Past the time the scene's exact solution holds (t_valid) its errors against it are null.
     holds = jm.metrics.exact_holds(scene, st.t)
+    if unmeasured:
+        err.update(dict.fromkeys(jm.metrics.EXACT_ERRORS))
     if where is not None:
         err["p_rms_rel"] = (
-            jm.metrics.pressure_error(scene, st, sol.body, where, allow_broken=True) if holds else None
+            jm.metrics.pressure_error(scene, st, sol.body, where, allow_broken=True)
+            if holds and not unmeasured
+            else None
         )
     diag = jm.diagnostics(scene, st, sol.body, allow_broken=True)
     params = scene.parameter_values()
@@ -475,6 +527,11 @@ def report(
         print(
             f"(past t_valid = {float(scene.t_valid):.6g}, where the exact solution stops holding: no "
             "errors against it)"
+        )
+    elif unmeasured:
+        print(
+            "(no particle is yet away from the front, where the errors against the exact solution are "
+            "measured (scene.smooth): they are not measurable yet)"
         )
     print("errors: " + "  ".join(f"{k}={scalar(v):.4g}" for k, v in err.items() if v is not None))
     print("diagnostics: " + "  ".join(f"{k}={_fmt(v)}" for k, v in diag.items()))

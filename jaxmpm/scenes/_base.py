@@ -197,14 +197,18 @@ class AbstractScene(eqx.Module):
     def parameter_values(self) -> dict[str, object]:
         """This scene's parameters as plain Python values (floats, ints, strings and bools).
 
-        ``dim`` is left out where it is 1, so that a 1D run of a scene with a ``dim`` field reads as
-        a run of a 1D scene (which has no ``dim`` parameter).
+        Every parameter is there, static ones included, so that ``type(scene)(**values)`` builds the
+        same scene (a saved run, an ensemble and a fit rebuild it so), with one exception that changes
+        nothing: ``dim`` is left out where it is 1 and its default is 1, so that a 1D run of a scene
+        with a ``dim`` field reads as a run of a 1D scene (which has no ``dim`` parameter). A scene
+        whose default is 2 (``axis-aligned``) keeps ``dim=1``.
 
         Returns:
             Parameter name to value.
         """
+        defaults = self.parameters()
         return {
             k: (getattr(self, k) if isinstance(v, (int, str)) else float(getattr(self, k)))
-            for k, v in self.parameters().items()
-            if not (k == "dim" and getattr(self, k) == 1)
+            for k, v in defaults.items()
+            if not (k == "dim" and getattr(self, k) == 1 and v == 1)
         }

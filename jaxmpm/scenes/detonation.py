@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import check_greater, check_positive, is_concrete
+from .._checks import check_finite, check_greater, check_positive, is_concrete, show
 from .._util import as_float
 from ..exact_detonation import Isentrope, gamma_law_particles, isentrope_fan
 from ..explosives import (
@@ -98,6 +98,23 @@ def explosive_eos(
     cj = cj_state(full, full.rho0, e0)
     eos = JWLIsentrope.from_jwl(full, e0) if products == "isentrope" else full
     return full.rho0, eos, e0, cj
+
+
+def _check_burn_width(value) -> None:
+    """Check a programmed burn's ``burn_width`` (particle sizes): finite and >= 1, to round-off; a
+    tracer passes.
+
+    Args:
+        value: the scene's ``burn_width``.
+
+    Raises:
+        ValueError: ``"burn_width must be >= 1 (the burn's length in particle sizes), got {value}"``.
+    """
+    check_finite("burn_width", value)
+    if is_concrete(value) and not np.all(np.asarray(value) >= 1.0 - 1e-12):
+        raise ValueError(
+            f"burn_width must be >= 1 (the burn's length in particle sizes), got {show(np.asarray(value))}"
+        )
 
 
 class Detonation(AbstractScene):
@@ -199,7 +216,7 @@ class Detonation(AbstractScene):
         check_greater("gamma", self.gamma, 1.0)
         check_positive("rho0", self.rho0)
         check_positive("L", self.L)
-        check_greater("burn_width", self.burn_width - 1.0, -1e-12)  # >= 1 particle size
+        _check_burn_width(self.burn_width)
         dtype = self.D.dtype
         ranges = _ranges(dtype)
         _check_range(

@@ -14,7 +14,7 @@ from ..materials import MIE_GRUNEISEN, STRENGTH, ElasticPlastic, MieGruneisen
 from ..particles import Body, State
 from ..regions import Region
 from ._base import AbstractScene
-from .detonation import EXPLOSIVE_NAMES, PRODUCTS, explosive_eos
+from .detonation import EXPLOSIVE_NAMES, PRODUCTS, _check_burn_width, explosive_eos
 
 
 def gurney_sandwich(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""]) -> Float[Array, ""]:
@@ -126,7 +126,7 @@ class AbstractGurney(AbstractScene):
         check_positive("sqrt_2E", self.sqrt_2E)
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
-        check_greater("burn_width", self.burn_width - 1.0, -1e-12)
+        _check_burn_width(self.burn_width)
         # The JWL constants are checked whichever explosive runs (as JWL checks them: A and B finite,
         # R1, R2 and w > 0): a bad value is refused, not kept in the run's parameters unused.
         check_finite("A", self.A)

@@ -1,0 +1,252 @@
+"""``jaxmpm run`` and ``jaxmpm resume`` under faults: scene parameters that round-trip through a saved
+run, a report with nothing yet to measure, output that cannot be written (exit status 74, the files
+saved before intact), Ctrl-C before the command's own handler, and messages in the command line's
+terms."""
+
+import errno
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from helpers import usage
+
+import jaxmpm as jm
+import jaxmpm.vtk as vtk
+from jaxmpm.cli import main
+
+SMALL = ["run", "gas-expansion", "cells=2", "--interpolator", "mpq", "--dt", "1e-5", "--steps", "2"]
+EARLY_DETONATION = ["run", "detonation", "cells=20", "--interpolator", "cpdi"]  # the front is < 12 cells in
+
+
+def failed(capsys, argv, status: int) -> str:
+    """Run ``jaxmpm argv``: exit status ``status``, one line on stderr (returned), no traceback."""
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == status, (argv, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.slow
+def test_every_scene_parameter_round_trips():
+    for name, cls in jm.SCENES.items():
+        dims = (1, 2, 3) if "dim" in cls.parameters() else (None,)
+        for dim in dims:
+            try:
+                scene = cls() if dim is None else cls(dim=dim)
+            except ValueError:  # a dim this scene does not take (the blast: 2 and 3)
+                continue
+            again = cls(**scene.parameter_values())
+            for key, value in cls.parameters().items():
+                assert np.array_equal(getattr(again, key), getattr(scene, key)), (name, dim, key)
+    assert jm.AxisAligned(dim=1).parameter_values()["dim"] == 1  # its default is 2
+    assert "dim" not in jm.GasExpansion(dim=1).parameter_values()  # its default is 1: a 1D scene
+
+
+@pytest.mark.slow
+def test_a_1d_axis_aligned_run_saved_and_resumed(capsys, tmp_path):
+    out = tmp_path / "aa.npz"
+    argv = ["run", "axis-aligned", "cells=2", "dim=1", "--interpolator", "cpdi", "--dt", "1e-4"]
+    assert main(argv + ["--steps", "2", "--out", str(out), "--no-progress", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["params"]["dim"] == 1
+    assert jm.long_run.load(out)[1]["params"]["dim"] == 1
+    assert main(["resume", str(out), "--no-progress", "--json"]) == 0
+    captured = capsys.readouterr()
+    resumed = json.loads(captured.out)
+    assert captured.err == "" and resumed["params"]["dim"] == 1 and resumed["steps"] == 2
+    assert len(resumed["particles"]["x"]) == 4 and not isinstance(resumed["particles"]["x"][0], list)
+
+
+@pytest.mark.slow
+def test_a_detonation_with_nothing_to_measure_yet_reports_null_errors(capsys, tmp_path):
+    assert main(EARLY_DETONATION + ["--t-end", "1e-7", "--max-steps", "20", "--json"]) == 0
+    errors = json.loads(capsys.readouterr().out)["errors"]
+    assert errors["F_rms_rel"] is None and errors["p_rms_rel"] is None and errors["x_max_abs"] is None
+    assert errors["separation_max"] is not None
+    out = tmp_path / "det.npz"
+    assert main(EARLY_DETONATION + ["--dt", "1e-8", "--steps", "3", "--out", str(out), "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err and "errors against the exact solution" in captured.out
+    assert "not measurable yet" in captured.out and "errors: separation_max=" in captured.out
+    assert main(["resume", str(out), "--no-progress", "--json"]) == 0
+    resumed = json.loads(capsys.readouterr().out)
+    assert resumed["errors"]["F_rms_rel"] is None and resumed["errors"]["p_rms_rel"] is None
+
+
+@pytest.mark.slow
+def test_a_run_that_breaks_down_reports_its_vtk_frames(capsys, tmp_path):
+    frames = tmp_path / "frames"
+    argv = ["run", "gas-expansion", "cells=2", "--interpolator", "mpq", "--dt", "1e-3", "--steps", "10"]
+    argv += ["--cfl-limit", "none", "--vtk", str(frames), "--vtk-every", "1", "--json"]
+    assert main(argv) == 3
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert out["status"] != 0 and out["vtk"] == dict(dir=str(frames), frames=3, every=1)
+    assert len(list(frames.glob("particles_*.vtk"))) == 3 and (frames / "particles.pvd").exists()
+    assert "broke down at step 3" in captured.err
+
+
+@pytest.mark.parametrize("width, shown", [("0", "0.0"), ("0.5", "0.5"), ("1e-13", "1e-13")])
+def test_a_burn_width_below_one_is_named_as_given(capsys, width, shown):
+    for scene in ("detonation", "gurney-slab"):
+        argv = ["run", scene, f"burn_width={width}", "--interpolator", "cpdi", "--dt", "1e-9", "--steps", "1"]
+        line = usage(capsys, argv, "burn_width must be >= 1 (the burn's length in particle sizes), got ")
+        assert line.endswith(f"got {shown}"), line
+
+
+BAD_ADDRESSES = ["garbage", "host:", ":1234", "host:0", "host:99999", "host:12x", "::1:5"]
+
+
+@pytest.mark.parametrize("address", BAD_ADDRESSES)
+def test_a_coordinator_without_a_port_is_refused(capsys, tmp_path, address):
+    distributed = ["--coordinator", address, "--processes", "1", "--process-id", "0"]
+    expected = "--coordinator must be HOST:PORT (a host name or address and a port from 1 to 65535, "
+    line = usage(capsys, SMALL + distributed, expected)
+    assert line.endswith(f"got {address!r}")
+    usage(capsys, ["resume", str(tmp_path / "none.npz")] + distributed, expected)
+
+
+def test_output_to_a_full_disk_is_one_line_with_status_74(capsys, monkeypatch):
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        line = failed(capsys, ["scenes"], 74)
+    assert line == "jaxmpm: error: cannot write standard output: No space left on device"
+
+
+@pytest.mark.slow
+def test_a_report_to_a_full_disk_is_one_line_with_status_74(capsys, monkeypatch):
+    with open("/dev/full", "w") as full:
+        monkeypatch.setattr(sys, "stdout", full)
+        line = failed(capsys, SMALL + ["--json"], 74)
+    assert line == "jaxmpm: error: cannot write standard output: No space left on device"
+
+
+def fill_disk_after(monkeypatch, files: int) -> None:
+    """Make ``jm.vtk``'s writes fail as on a full disk once ``files`` files are written, the failing
+    one having written half of itself."""
+    real = vtk.write_whole
+    count = [0]
+
+    def write_whole(path, write, **kwargs):
+        count[0] += 1
+        if count[0] > files:
+
+            def half(f):
+                f.write(b"# vtk DataFile Version 3.0\n")
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+            return real(path, half, **kwargs)
+        return real(path, write, **kwargs)
+
+    monkeypatch.setattr(vtk, "write_whole", write_whole)
+
+
+@pytest.mark.slow
+def test_a_vtk_series_that_fills_the_disk_leaves_nothing_behind(capsys, tmp_path, monkeypatch):
+    frames = tmp_path / "frames"
+    argv = SMALL + ["--vtk", str(frames), "--vtk-every", "1", "--no-progress"]
+    fill_disk_after(monkeypatch, 3)
+    line = failed(capsys, argv + ["--json"], 74)
+    assert line == f"jaxmpm: error: cannot write --vtk {frames}: No space left on device"
+    assert not frames.exists() and list(tmp_path.iterdir()) == []  # the folder it made is gone
+    monkeypatch.undo()  # the disk has room again: the same command runs
+    assert main(argv) == 0
+    assert sorted(p.name for p in frames.iterdir())[-2:] == ["particles_00001.vtk", "particles_00002.vtk"]
+
+
+@pytest.mark.slow
+def test_a_vtk_series_that_fills_the_disk_keeps_the_files_there(capsys, tmp_path, monkeypatch):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    before = {"particles_00000.vtk": "OLD0", "grid.pvd": "OLD", "notes.txt": "mine"}
+    before["particles_00007.vtk"] = "OLD7"  # a frame the new series would not replace
+    for name, text in before.items():
+        (frames / name).write_text(text)
+    fill_disk_after(monkeypatch, 5)
+    line = failed(capsys, SMALL + ["--vtk", str(frames), "--vtk-every", "1", "--overwrite"], 74)
+    assert line.startswith(f"jaxmpm: error: cannot write --vtk {frames}: ")
+    assert {p.name: p.read_text() for p in frames.iterdir()} == before  # as it was: no new, no temporary
+
+
+def test_a_full_disk_while_saving_a_run_is_status_74(capsys, tmp_path, monkeypatch):
+    out = tmp_path / "run.npz"
+    mine = tmp_path / "run.npz.tmp"
+    mine.write_text("MINE")  # a file of the user's beside the run: never written over
+
+    def full(f, **arrays):
+        f.write(b"PK\x03\x04 half an archive")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(jm.long_run.np, "savez", full)
+    line = failed(capsys, SMALL + ["--out", str(out), "--no-progress"], 74)
+    assert line == f"jaxmpm: error: cannot write --out {out}: No space left on device"
+    assert [p.name for p in tmp_path.iterdir()] == ["run.npz.tmp"] and mine.read_text() == "MINE"
+
+
+@pytest.mark.slow
+def test_ctrl_c_before_the_command_handles_it_is_one_line_and_130():
+    # SIGINT while the console script is still starting (as during the imports), before main installs
+    # its handler: the process leaves at once with one line.
+    code = (
+        "import os, signal, time\n"
+        "import jaxmpm.cli as cli\n"
+        "def main():\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(30)\n"
+        "    return 0\n"
+        "cli.main = main\n"
+        "cli.console()\n"
+    )
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+    assert proc.returncode == 130 and proc.stderr == "jaxmpm: interrupted\n" and proc.stdout == ""
+
+
+def test_grad_on_a_scene_without_an_exact_solution_says_what_it_needs(capsys):
+    for scene, name in (("noh", "u0"), ("shock-tube", "x0")):
+        argv = ["run", scene, "cells=8", "--interpolator", "cpdi", "--dt", "1e-5", "--steps", "2"]
+        line = usage(capsys, argv + ["--grad", name], f"and {scene} has none; scenes with one: gas-expansion")
+        assert line.startswith("jaxmpm: error: --grad gives d(F_rms_rel)/d(NAME)")
+        assert "error must" not in line
+    usage(capsys, SMALL + ["--grad", "cells"], "--grad: cells is structural (an integer), so it has no")
+
+
+def test_messages_in_the_command_lines_terms(capsys, tmp_path):
+    mine = tmp_path / "notes.txt"
+    mine.write_text("precious")
+    line = usage(capsys, SMALL + ["--out", str(mine)], f"--out {mine} already exists (an existing file")
+    assert "pass --overwrite to replace it" in line and "overwrite=True" not in line
+    assert mine.read_text() == "precious"
+    usage(
+        capsys,
+        ["run"],
+        "jaxmpm run needs a scene name (see `jaxmpm scenes`) and --interpolator (one of spq, gimp,",
+    )
+    usage(capsys, ["run", "gas-expansion"], "jaxmpm run needs --interpolator (one of spq,")
+    line = usage(capsys, SMALL + ["--viscosity", "-1,0.2"], "--viscosity must be QUAD,LIN or QUAD,LIN,SHEAR")
+    assert line.endswith("got '-1,0.2': c_quad must be >= 0, got -1.0")
+    line = usage(capsys, SMALL + ["--viscosity", "1"], "--viscosity must be QUAD,LIN or QUAD,LIN,SHEAR")
+    assert line.endswith("got '1' (1 number)")
+
+
+def test_ctrl_c_while_jaxmpm_is_imported_is_one_line_and_130():
+    # The console script's launcher answers SIGINT before it imports jaxmpm (seconds, with JAX): here
+    # the signal arrives as the import of the command line starts.
+    code = (
+        "import builtins, os, signal, time\n"
+        "real = builtins.__import__\n"
+        "def slow_import(name, *args, **kwargs):\n"
+        "    if name == 'jaxmpm.cli':\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(30)\n"
+        "    return real(name, *args, **kwargs)\n"
+        "import jaxmpm_console\n"
+        "builtins.__import__ = slow_import\n"
+        "jaxmpm_console.console()\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130 and proc.stderr == "jaxmpm: interrupted\n" and proc.stdout == ""
