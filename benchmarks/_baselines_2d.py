@@ -62,10 +62,33 @@ def cells_of(n: int, dim: int) -> int | None:
         dim: 2 or 3.
 
     Returns:
-        ``k``, or ``None`` when ``n`` is not ``(2 k)^dim`` for an integer ``k >= 1``.
+        ``k``, or ``None`` when ``n`` is not ``(2 k)^dim`` for an integer ``k >= 1`` (exactly, in integer
+        arithmetic, for any integer ``n``).
     """
-    k = round((n / 2**dim) ** (1.0 / dim))
-    return k if k >= 1 and (2 * k) ** dim == n else None
+    if n < 2**dim:
+        return None
+    side = integer_root(n, dim)
+    return side // 2 if side % 2 == 0 and side**dim == n else None
+
+
+def integer_root(n: int, dim: int) -> int:
+    """The largest integer ``r`` with ``r^dim <= n`` (Newton's method on integers: exact for any size).
+
+    Args:
+        n: an integer >= 0.
+        dim: the root's degree, >= 1.
+
+    Returns:
+        ``r``.
+    """
+    if n < 2:
+        return n
+    r = 1 << -(-n.bit_length() // dim)  # 2^ceil(bits / dim) > the root
+    while True:
+        s = ((dim - 1) * r + n // r ** (dim - 1)) // dim
+        if s >= r:
+            return r
+        r = s
 
 
 def layout_nd(n: int, dim: int) -> dict:

@@ -24,10 +24,14 @@ from __future__ import annotations
 
 import csv
 import datetime
+import errno
+import io
 import json
 import math
 import os
 import pathlib
+import secrets
+import signal
 import subprocess
 import sys
 import time
@@ -47,6 +51,7 @@ from ._baselines_2d import (
     BASELINES_ND,
     PROBLEM_ND,
     cells_of,  # noqa: F401  (the command line checks --sizes-2d/3d with it)
+    integer_root,
     layout_nd,
 )
 
@@ -57,6 +62,36 @@ SIZES = (1_000, 8_000, 64_000, 256_000, 1_000_000)
 CODES = ("numpy", "jax", "taichi", "warp", "jaxmpm")
 _BASELINE_CODE = {"numpy": "NumPy", "jax": "plain JAX", "taichi": "Taichi", "warp": "Warp"}
 PASSES = 4  # passes over the particle state (x, v, F) a step must make; see ``bandwidth_bound``
+
+FILES = ("bench.csv", "bench.json", "bench.md")
+"""What ``write`` writes into its folder."""
+
+ROW_FIELDS = ("code", "dtype", "particles", "steps", "compile_s", "run_s", "Mpsps", "F_mean", "status", "dim")
+"""The keys of a row of ``rows``, in order: the columns of ``bench.csv``."""
+
+MAX_STEPS = 2**31 - 1
+"""The most steps a run takes: jaxmpm's step counter is a 32-bit integer."""
+
+BYTES_PER_PARTICLE = {
+    "numpy": {1: 160, 2: 940, 3: 2200},
+    "jax": {1: 150, 2: 470, 3: 1250},
+    "spq": {1: 400, 2: 1040, 3: 2400},
+    "gimp": {1: 460, 2: 1560, 3: 6400},
+    "cpgimp": {1: 470, 2: 1540, 3: 6400},
+    "cpdi": {1: 490, 2: 2060, 3: 8200},
+    "mpq": {1: 440, 2: 1510, 3: 3000},
+    "cpdi2": {1: 520, 2: 1950, 3: 6100},
+}
+"""Peak memory of one run per particle in float64, bytes, by dimension: the NumPy and plain JAX
+codes (``numpy``, ``jax``) and jaxmpm's interpolators (``simulate``; one step a call takes as much as
+``spq``). The peak resident memory of a run on a CPU at 2M (1D), 1M (2D) and 512k (3D) particles,
+less that of the process before it, rounded up by 10%; at two to four times as many particles a
+particle takes less. Taichi and Warp hold the state and grid of the NumPy code without its
+temporaries: counted as ``numpy``. Float32 takes less."""
+
+PROCESS_BYTES = 300_000_000
+"""Memory of a benchmark process before its first run (Python, NumPy and JAX imported): 270 MB
+measured, rounded up."""
 
 
 def steps_for(n: int, steps: int) -> int:
@@ -87,6 +122,70 @@ def available(code: str) -> bool:
     import importlib.util
 
     return importlib.util.find_spec(code) is not None
+
+
+def bytes_per_particle(dim: int, codes, interpolators) -> int:
+    """The most memory a particle takes in a run of one of ``codes`` (``BYTES_PER_PARTICLE``; the
+    codes run one at a time).
+
+    Args:
+        dim: 1, 2 or 3.
+        codes: among ``CODES``, at least one.
+        interpolators: jaxmpm's interpolators (their names), at least one when ``codes`` has ``jaxmpm``.
+
+    Returns:
+        Bytes.
+    """
+    kinds = [c if c in ("numpy", "jax") else "numpy" for c in codes if c != "jaxmpm"]
+    if "jaxmpm" in codes:
+        kinds += interpolators
+    largest = max(b[dim] for b in BYTES_PER_PARTICLE.values())  # for an interpolator not measured
+    return max(BYTES_PER_PARTICLE[k][dim] if k in BYTES_PER_PARTICLE else largest for k in kinds)
+
+
+def largest_size(dim: int, codes, interpolators, available: int) -> int:
+    """The most particles a run of ``dim`` dimensions can have within ``available`` bytes of memory
+    (``PROCESS_BYTES`` and ``bytes_per_particle`` each): even in 1D, ``(2 k)^dim`` in 2D and 3D.
+
+    Args:
+        dim: 1, 2 or 3.
+        codes: among ``CODES``, at least one.
+        interpolators: jaxmpm's interpolators (their names), at least one when ``codes`` has ``jaxmpm``.
+        available: bytes.
+
+    Returns:
+        The particle count; 0 when not even the smallest run fits.
+    """
+    n = (available - PROCESS_BYTES) // bytes_per_particle(dim, codes, interpolators)
+    if n < 2**dim:
+        return 0
+    if dim == 1:
+        return n - n % 2
+    side = integer_root(n, dim)
+    side -= side % 2
+    return side**dim
+
+
+def available_memory() -> int | None:
+    """Memory this machine can still give a new process, in bytes: ``MemAvailable`` of
+    ``/proc/meminfo``, else the free pages; ``None`` where neither can be read. The host's memory,
+    read without starting a JAX backend in this process (on a GPU that would take the device's memory
+    from the benchmark's own processes).
+
+    Returns:
+        Bytes, or ``None``.
+    """
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def _scene(n: int, dim: int = 1):
@@ -419,7 +518,7 @@ def run(
         ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
 
     Raises:
-        RuntimeError: a benchmark process failed (with the end of its stderr).
+        WorkerError: a benchmark process failed.
     """
     result = dict(
         date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -450,7 +549,7 @@ def run(
         path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
         proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=path))
         if proc.returncode != 0:
-            raise RuntimeError(f"the {dtype} benchmark process failed:\n{proc.stderr[-4000:]}")
+            raise WorkerError(dtype, proc.returncode, proc.stderr)
         part = json.loads(proc.stdout.strip().splitlines()[-1])
         for key in ("rows", "reverse", "ensemble", "numpy_with_fold"):
             result[key].extend(part.get(key, []))
@@ -460,6 +559,32 @@ def run(
                 result[f"bandwidth_bound_Mpsps_{dtype}_{dim}d"] = bandwidth_bound(bw, dtype, dim)
     result["agreement"] = agreement(result["rows"], result["numpy_with_fold"])
     return result
+
+
+class WorkerError(RuntimeError):
+    """A benchmark process (one float type's) failed.
+
+    Its message is one line: the float type and how the process ended (the last line of its stderr,
+    or the signal that killed it); ``stderr`` holds the whole of its stderr.
+
+    Args:
+        dtype: the process's float type.
+        returncode: its exit status (negative: killed by that signal).
+        stderr: what it wrote on stderr.
+    """
+
+    def __init__(self, dtype: str, returncode: int, stderr: str):
+        lines = [line.strip() for line in stderr.splitlines() if line.strip()]
+        if returncode < 0:
+            try:
+                name = signal.Signals(-returncode).name
+            except ValueError:
+                name = f"signal {-returncode}"
+            why = f"killed by {name}" + (" (out of memory?)" if -returncode == signal.SIGKILL else "")
+        else:
+            why = lines[-1] if lines else f"exit status {returncode}, nothing on stderr"
+        super().__init__(f"the {dtype} benchmark process failed: {why}")
+        self.dtype, self.returncode, self.stderr = dtype, returncode, stderr
 
 
 def _suffix(dim: int) -> str:
@@ -621,26 +746,48 @@ def table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write(result: dict, out_dir: str | os.PathLike) -> list[pathlib.Path]:
+def write(result: dict, out_dir: str | os.PathLike, overwrite: bool = False) -> list[pathlib.Path]:
     """Write ``bench.csv`` (the throughput rows), ``bench.json`` (everything) and ``bench.md`` (the
-    tables).
+    tables), all three or none: each is written whole to a new temporary file beside it first, and
+    only once all three are written are they renamed into place. A write that fails (a full disk)
+    removes the temporary files and raises, leaving the folder as it was.
 
     Args:
         result: what ``run`` returns.
         out_dir: the directory (created).
+        overwrite: replace the files of an earlier benchmark there (else refused).
 
     Returns:
-        The three paths.
+        The three paths (``FILES``).
+
+    Raises:
+        FileExistsError: without ``overwrite``, one of the files is there already (nothing written).
+        OSError: a file cannot be written.
     """
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [out / "bench.csv", out / "bench.json", out / "bench.md"]
-    with open(paths[0], "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(result["rows"][0]))
-        w.writeheader()
-        w.writerows(result["rows"])
-    paths[1].write_text(dumps(result, indent=1))
-    paths[2].write_text(table(result) + "\n")
+    rows = io.StringIO(newline="")
+    w = csv.DictWriter(rows, fieldnames=ROW_FIELDS)
+    w.writeheader()
+    w.writerows(result["rows"])
+    texts = (rows.getvalue(), dumps(result, indent=1), table(result) + "\n")
+    paths = [out / name for name in FILES]
+    staged = []
+    try:
+        for path, text in zip(paths, texts):
+            tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+            with open(tmp, "xb") as f:  # a name of its own: no file is written over
+                staged.append(tmp)
+                f.write(text.encode())
+        if not overwrite:
+            for path in paths:
+                if path.exists():
+                    raise FileExistsError(errno.EEXIST, f"{path.name} is there already", str(path))
+        for tmp, path in zip(staged, paths):
+            os.replace(tmp, path)
+    finally:
+        for tmp in staged:
+            tmp.unlink(missing_ok=True)
     return paths
 
 

@@ -190,16 +190,19 @@ def main(argv=None) -> int:
         return 0
     if args.devices < 2 or args.repeats < 1:
         p.error("--devices must be >= 2 and --repeats >= 1")
+    out = pathlib.Path(args.out) if args.out else None
+    if out is not None and out.exists() and not out.is_dir():  # before the runs, not after
+        p.error(f"--out {args.out} is a file, not a folder")
     result = run(args.devices, args.repeats)
     text = table(result)
     print(text)
-    if args.out:
+    if out is not None:
+        from jaxmpm._files import write_whole
         from jaxmpm._json import dumps
 
-        out = pathlib.Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "sharded.json").write_text(dumps(result, indent=1) + "\n")
-        (out / "sharded.md").write_text(text)
+        for name, content in (("sharded.json", dumps(result, indent=1) + "\n"), ("sharded.md", text)):
+            write_whole(out / name, lambda f, content=content: f.write(content.encode()))
     return 0
 
 

@@ -2,6 +2,10 @@
 
 The benchmark and its reference codes live in ``benchmarks/`` at the root of a source checkout,
 beside the package; they are not installed. This command finds them there.
+
+Every option is checked before the benchmark starts: the sizes against the memory available (an
+estimate, ``benchmarks.bench.largest_size``), and ``--out`` for a folder that can be written and holds no
+``bench.csv``, ``bench.json`` or ``bench.md`` (unless ``--overwrite``).
 """
 
 import importlib
@@ -9,9 +13,10 @@ import pathlib
 import sys
 
 import jaxmpm as jm
+from jaxmpm._memory import readable
 
 from . import _assign
-from ._common import UsageError, print_json, writable_folder
+from ._common import CannotWrite, UsageError, print_json, writable_folder
 
 
 def add_parser(subparsers) -> None:
@@ -47,6 +52,11 @@ def add_parser(subparsers) -> None:
     p.add_argument("--interpolators", help="jaxmpm's, comma-separated")
     p.add_argument("--no-extras", action="store_true", help="skip the reverse-mode and ensemble measurements")
     p.add_argument("--out", help="directory for bench.csv, bench.json and bench.md")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="with --out: replace the bench.csv, bench.json and bench.md there (else refused)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(handler=command)
 
@@ -75,31 +85,74 @@ def benchmark():
     return module
 
 
-def _sizes_nd(text: str, dim: int, cells_of) -> list[int]:
-    """The particle counts of ``--sizes-2d`` or ``--sizes-3d``: ``(2 k)^dim`` each.
+def _sizes(text: str, option: str, dim: int, cells_of) -> list[int]:
+    """The particle counts of ``--sizes`` (even, two per cell), ``--sizes-2d`` or ``--sizes-3d``
+    (``(2 k)^dim`` each).
 
     Args:
-        text: the option's value, comma-separated integers ('' for none).
-        dim: 2 or 3.
+        text: the option's value, comma-separated integers ('' for none in 2D and 3D).
+        option: the option, for the message.
+        dim: 1, 2 or 3.
         cells_of: ``(n, dim) -> k``, or ``None`` where ``n`` is not ``(2 k)^dim`` (the benchmark's).
 
     Returns:
-        The counts.
+        The counts, in order.
 
     Raises:
-        UsageError: not integers, or not ``(2 k)^dim``.
+        UsageError: not integers (none in 1D), not of the form asked for, or one given twice.
     """
-    option = f"--sizes-{dim}d"
+    tokens = text.split(",") if dim == 1 else [t for t in text.split(",") if t.strip()]
     try:
-        sizes = [int(t) for t in text.split(",") if t.strip()]
+        sizes = [int(t) for t in tokens]
     except ValueError:
         raise UsageError(f"{option} must be comma-separated integers, got {text!r}") from None
-    if any(cells_of(n, dim) is None for n in sizes):
+    if dim == 1 and any(n < 2 or n % 2 for n in sizes):
+        raise UsageError(f"{option} must be even particle counts >= 2 (two per cell), got {text!r}")
+    if dim > 1 and any(cells_of(n, dim) is None for n in sizes):
         shape = "a square of k x k cells, 2 x 2" if dim == 2 else "a cube of k x k x k cells, 2 x 2 x 2"
         raise UsageError(
             f"{option} must be particle counts {2**dim} k^{dim} ({shape} particles each), got {text!r}"
         )
-    return sizes
+    return _distinct(sizes, option, text)
+
+
+def _distinct(items: list, option: str, text: str) -> list:
+    """``items``, refused when one is given twice (it would run twice)."""
+    for k, item in enumerate(items):
+        if item in items[:k]:
+            raise UsageError(f"{option} names {item} twice, got {text!r}")
+    return items
+
+
+def _check_memory(bench, codes, interps, sizes: dict) -> None:
+    """Refuse sizes whose runs would not fit in the memory this machine has available
+    (``bench.largest_size``: the process and the most memory a particle takes among ``codes``).
+
+    Args:
+        bench: the benchmark module.
+        codes: the codes that will run.
+        interps: jaxmpm's interpolators that will run.
+        sizes: ``{option: (dim, particle counts)}``.
+
+    Raises:
+        UsageError: the largest count of an option does not fit; the message names the option and
+            the largest count that fits.
+    """
+    available = bench.available_memory()
+    if available is None:
+        return
+    for option, (dim, counts) in sizes.items():
+        if not counts:
+            continue
+        largest = bench.largest_size(dim, codes, interps, available)
+        if max(counts) > largest:
+            per = bench.bytes_per_particle(dim, codes, interps)
+            fits = f"the largest that fits is {largest:,}" if largest else "not even the smallest run fits"
+            raise UsageError(
+                f"{option}: {max(counts):,} particles need more than the {readable(available)} of memory "
+                f"available here (an estimated {per:,} bytes a particle, {readable(bench.PROCESS_BYTES)} "
+                f"more for the process); {fits}"
+            )
 
 
 def command(args) -> int:
@@ -109,49 +162,82 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status, 0.
+        The exit status: 0, or 1 when a benchmark process failed (one line on stderr).
 
     Raises:
-        UsageError: bad input, or no source checkout to run the benchmark from.
+        UsageError: bad input, or no source checkout to run the benchmark from; all found before the
+            benchmark starts.
+        CannotWrite: ``--out``'s files cannot be written (a full disk; or, without ``--overwrite``,
+            one of them was put there while the benchmark ran): none of them is written, in whole
+            or in part.
     """
     bench = benchmark()
-    try:
-        sizes = [int(t) for t in args.sizes.split(",")]
-    except ValueError:
-        raise UsageError(f"--sizes must be comma-separated integers, got {args.sizes!r}") from None
-    if any(n < 2 or n % 2 for n in sizes):
-        raise UsageError(f"--sizes must be even particle counts >= 2 (two per cell), got {args.sizes!r}")
-    if args.steps < 2:
-        raise UsageError(f"--steps must be an integer >= 2, got {args.steps}")
-    sizes_2d = _sizes_nd(args.sizes_2d, 2, bench.cells_of)
-    sizes_3d = _sizes_nd(args.sizes_3d, 3, bench.cells_of)
-    dtypes = _assign.choices(args.dtypes, "--dtypes", ("f32", "f64"))
-    codes = list(bench.CODES) if args.codes is None else _assign.choices(args.codes, "--codes", bench.CODES)
-    interps = (
-        list(jm.INTERPOLATORS)
-        if args.interpolators is None
-        else _assign.choices(args.interpolators, "--interpolators", tuple(jm.INTERPOLATORS))
-    )
-    if args.out is not None:
-        writable_folder(args.out, "--out")  # before minutes of benchmark, not after
+    if args.overwrite and args.out is None:
+        raise UsageError("--overwrite goes with --out DIR (the files it would replace)")
+    sizes = _sizes(args.sizes, "--sizes", 1, bench.cells_of)
+    if not 2 <= args.steps <= bench.MAX_STEPS:
+        raise UsageError(
+            f"--steps must be an integer from 2 to {bench.MAX_STEPS} (the step counter is a 32-bit "
+            f"integer), got {args.steps}"
+        )
+    sizes_2d = _sizes(args.sizes_2d, "--sizes-2d", 2, bench.cells_of)
+    sizes_3d = _sizes(args.sizes_3d, "--sizes-3d", 3, bench.cells_of)
+    dtypes = _distinct(_assign.choices(args.dtypes, "--dtypes", ("f32", "f64")), "--dtypes", args.dtypes)
+    if args.codes is None:
+        codes = list(bench.CODES)
+    else:
+        codes = _distinct(_assign.choices(args.codes, "--codes", bench.CODES), "--codes", args.codes)
+    if args.interpolators is None:
+        interps = list(jm.INTERPOLATORS)
+    else:
+        allowed = tuple(jm.INTERPOLATORS)
+        interps = _assign.choices(args.interpolators, "--interpolators", allowed)
+        interps = _distinct(interps, "--interpolators", args.interpolators)
     missing = [c for c in codes if not bench.available(c)]
+    running = [c for c in codes if c not in missing]
+    if not running:
+        raise UsageError(
+            f"--codes {args.codes or ','.join(codes)}: {', '.join(missing)} not installed "
+            "(pip install jaxmpm[bench]); nothing to run"
+        )
+    _check_memory(
+        bench,
+        running,
+        interps,
+        {"--sizes": (1, sizes), "--sizes-2d": (2, sizes_2d), "--sizes-3d": (3, sizes_3d)},
+    )
+    if args.out is not None:  # before minutes of benchmark, not after
+        folder = writable_folder(args.out, "--out")
+        held = [name for name in bench.FILES if (folder / name).exists()]
+        if held and not args.overwrite:
+            raise UsageError(
+                f"--out {args.out} already holds {', '.join(held)}; pass --overwrite to replace "
+                f"{'it' if len(held) == 1 else 'them'}, or choose another folder"
+            )
     if missing:
         print(
             f"jaxmpm bench: {', '.join(missing)} not installed, skipped (pip install jaxmpm[bench])",
             file=sys.stderr,
         )
-    result = bench.run(
-        sizes,
-        args.steps,
-        dtypes,
-        codes,
-        interps,
-        extras=not args.no_extras,
-        sizes_2d=sizes_2d,
-        sizes_3d=sizes_3d,
-    )
+    try:
+        result = bench.run(
+            sizes,
+            args.steps,
+            dtypes,
+            codes,
+            interps,
+            extras=not args.no_extras,
+            sizes_2d=sizes_2d,
+            sizes_3d=sizes_3d,
+        )
+    except bench.WorkerError as e:
+        print(f"jaxmpm: error: {e}", file=sys.stderr)
+        return 1
     if args.out is not None:
-        paths = bench.write(result, args.out)
+        try:
+            paths = bench.write(result, args.out, overwrite=args.overwrite)
+        except OSError as e:
+            raise CannotWrite(f"--out {args.out}", e) from None
         if not args.json:
             print("wrote " + ", ".join(str(p) for p in paths))
     if args.json:
