@@ -42,7 +42,9 @@ first turnaround, when that turnaround comes; ``calibrate`` also issues a ``Cali
 particle and quantity), the others go on; when every start broke down, ``CalibrationError``. When the
 best start cannot go on because every step toward a lower loss is a run that breaks down, the fit has
 no answer: ``CalibrationError`` names the breakdown and what to change. A fit stopped by its iteration
-count before converging says so in ``Fit.warning``. Data beyond the grid are refused before any run.
+count before converging says so in ``Fit.warning``. Data beyond the grid are refused before any run,
+and so are names that cannot be fitted (``fittable``: not ``h`` or ``dt``, not a static parameter,
+not one the run does not use). Ctrl-C raises ``KeyboardInterrupt`` naming the iteration it stopped in.
 
 **Experiment design.** ``information`` gives the Fisher information ``J^T J / sigma^2`` of an
 observation plan at given constants, and the standard errors a fit would have, before any data exist.
@@ -78,11 +80,12 @@ from ._checks import (
 from ._simulate import SaveAt, SimulationError, as_devices, failure_message, simulate
 from ._step import check_interpolator
 from ._util import host
+from .ensemble import computed
 from .interpolators import AbstractInterpolator
 from .scenes import AbstractScene
 from .scenes.gas_slab import free_surface, pad_for
-from .scenes.gurney import GurneySlab
-from .sensitivity import check_names, continuous_parameters
+from .scenes.gurney import AbstractGurney, GurneySlab
+from .sensitivity import check_names, continuous_parameters, static_parameters
 from .status import LEFT_GRID
 
 NOT_FITTED = {"h": "the grid spacing", "dt": "the model's time step"}
@@ -105,14 +108,18 @@ _EDGE_SHRINK = 1e6
 the Gauss-Newton step pointing past the bound) for ``_at_edge`` to say the fit ran into the bound."""
 
 
-def fittable(scene: AbstractScene) -> tuple[str, ...]:
-    """The names ``calibrate`` can fit: the scene's continuous parameters but ``h`` and ``dt``.
+def fittable(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
+    """The names ``calibrate`` can fit: the scene's continuous parameters but ``h`` and ``dt`` (not
+    material constants), the static ones (``jaxmpm.sensitivity.static_parameters``, such as the Gurney
+    scenes' ``split``: fixed when the run is compiled, they have no derivative) and those its run does
+    not use (``unused``; of a scene class, those no run of it uses).
 
     Args:
         scene: the scene (or its class).
 
     Returns:
-        The names, in the scene's order (for the gas slab ``P0, gamma, p_atm, rho0``).
+        The names, in the scene's order (for the gas slab ``P0, gamma, p_atm, rho0``; for the Gurney
+        slab of ``explosive="gamma-law"`` ``D, gamma, rho0, burn_width, L``).
 
     Raises:
         ValueError: ``scene`` is neither a jaxmpm scene nor a scene class.
@@ -123,7 +130,52 @@ def fittable(scene: AbstractScene) -> tuple[str, ...]:
         raise ValueError(
             f"scene must be a jaxmpm scene or scene class such as jm.GasSlab, got {brief(scene)}"
         )
-    return tuple(n for n in continuous_parameters(scene) if n not in NOT_FITTED)
+    skip = set(NOT_FITTED) | set(static_parameters(scene)) | set(unused(scene))
+    return tuple(n for n in continuous_parameters(scene) if n not in skip)
+
+
+_JWL_CONSTANTS = ("A", "B", "R1", "R2", "w")
+"""The Gurney scenes' JWL constants, which only ``explosive="jwl"`` uses."""
+
+
+def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
+    """The continuous parameters of ``scene`` that its run does not use, each with why: a fit of one
+    would fit nothing (the loss does not depend on it).
+
+    The Gurney scenes' ``sqrt_2E`` is the constant of Gurney's formula (``gurney_velocity``), never
+    of the run. With ``explosive="gamma-law"`` the run does not use the JWL constants ``A, B, R1, R2,
+    w``; with ``"jwl"`` not ``gamma``; with a row of ``jaxmpm.explosives.EXPLOSIVES`` (``"compb"``,
+    ...) none of ``D, gamma, rho0, A, B, R1, R2, w``: the row has its own. Other scenes use every
+    continuous parameter.
+
+    Args:
+        scene: the scene, or its class (then only what no run of it uses: ``sqrt_2E``).
+
+    Returns:
+        Name to a clause saying why (empty where the run uses every continuous parameter).
+    """
+    cls = scene if isinstance(scene, type) else type(scene)
+    if not issubclass(cls, AbstractGurney):
+        return {}
+    out = {"sqrt_2E": "it is the constant of Gurney's formula (gurney_velocity), not of the run"}
+    if isinstance(scene, type):
+        return out
+    explosive = scene.explosive
+    if explosive == "gamma-law":
+        names = _JWL_CONSTANTS
+        why = "the run of explosive=gamma-law does not use it (a JWL constant: explosive=jwl uses it)"
+    elif explosive == "jwl":
+        names = ("gamma",)
+        why = "the run of explosive=jwl does not use it (the gamma law's: explosive=gamma-law uses it)"
+    else:
+        names = ("D", "gamma", "rho0", *_JWL_CONSTANTS)
+        why = (
+            f"the run of explosive={explosive} does not use it: the products are that row of "
+            "jm.explosives.EXPLOSIVES, with its own constants (explosive=gamma-law or jwl takes them "
+            "from the scene)"
+        )
+    out.update(dict.fromkeys(names, why))
+    return out
 
 
 class CalibrationError(RuntimeError):
@@ -429,7 +481,7 @@ class _Model:
         multiple of the device count (repeating the last), sharded over them, and gathered back
         (from every process)."""
         if self.devices is None:
-            out = fn(*(jnp.asarray(a) for a in args))
+            out = computed(fn, *(jnp.asarray(a) for a in args))
             return tuple(np.asarray(o) for o in out) if isinstance(out, tuple) else np.asarray(out)
         n, k = np.shape(args[0])[0], len(self.devices)
         padded = -(-n // k) * k
@@ -439,7 +491,7 @@ class _Model:
         for a in args:
             a = np.asarray(a, dtype=dtype)
             put.append(jax.device_put(np.concatenate([a, np.repeat(a[-1:], padded - n, axis=0)]), sharding))
-        out = fn(*put)
+        out = computed(fn, *put)
         if isinstance(out, tuple):
             return tuple(host(o)[:n] for o in out)
         return host(out)[:n]
@@ -478,13 +530,9 @@ class _Model:
         if refused is not None:  # a point the fit's variables reach, not one the user gave
             return f"the fit reached {where}, where {type(self.scene).__name__} {_NO_RUN}: {refused}", None
         sc = type(self.scene)(**{**self.scene.parameter_values(), **trial})
-        sol = simulate(
-            sc,
-            self.interpolator,
-            dt=self.dt,
-            steps=_steps(self.t_data, self.dt, "t_data"),
-            throw=False,
-            **self.kwargs,
+        steps = _steps(self.t_data, self.dt, "t_data")
+        sol = computed(
+            lambda: simulate(sc, self.interpolator, dt=self.dt, steps=steps, throw=False, **self.kwargs)
         )
         f = sol.failure()
         if f is None:
@@ -550,13 +598,17 @@ def calibrate(
 
     Raises:
         ValueError: bad input (a ``scene`` or ``interpolator`` that is not jaxmpm's, names that are
-            not continuous parameters, ``h`` or ``dt``, a name given twice, an unknown method, data
-            of mismatched shapes, empty or not finite, times not increasing from ``>= 0``, data
-            beyond the grid, ``starts`` that are not a dict or a non-empty list of dicts of numbers,
-            a start the scene refuses, a bad ``tol``, ``noise``, threshold or ``progress``, bad
-            ``devices`` or ``devices`` with a method other than ``"lm"``).
+            not continuous parameters, ``h`` or ``dt``, a static name or one the run does not use
+            (``fittable``), a name given twice, an unknown method, data of mismatched shapes, empty
+            or not finite, times not increasing from ``>= 0``, data beyond the grid, ``starts``
+            that are not a dict or a non-empty list of dicts of numbers, a start the scene refuses,
+            a bad ``tol``, ``noise``, threshold or ``progress``, bad ``devices`` or ``devices``
+            with a method other than ``"lm"``).
         CalibrationError: every start broke down, or the best start cannot go on because every
             step toward a lower loss is a run that breaks down.
+        KeyboardInterrupt: Ctrl-C during the fit, saying the iteration it stopped in (answered
+            between iterations, and at once under the command line: ``jaxmpm.ensemble.computed``);
+            nothing is returned.
     """
     _check_parts(scene, interpolator)
     names = tuple(_names(fit))
@@ -588,16 +640,32 @@ def calibrate(
     L = _scale(scene, x_data)
     t0 = time.perf_counter()
     bar = _bar(progress, iterations)
+    where = dict(iteration=0, loss=float("nan"))  # how far the fit got, for a Ctrl-C's message
     try:
         if method == "lm":
-            run = _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar)
+            run = _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, where)
         else:
-            run = _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar)
+            run = _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar, where)
+        wall = time.perf_counter() - t0
+        return _finish(
+            model, run, start_theta, data, L, wall, method, noise, max_correlation, max_relative_std
+        )
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(_interrupted(where, iterations)) from None
     finally:
         if bar is not None:
             bar.close()
-    wall = time.perf_counter() - t0
-    return _finish(model, run, start_theta, data, L, wall, method, noise, max_correlation, max_relative_std)
+
+
+def _interrupted(where: dict, iterations: int) -> str:
+    """What a Ctrl-C during a fit says: the iteration it stopped in and the lowest loss so far."""
+    it = where["iteration"]
+    text = f"interrupted at iteration {it} of {iterations}"
+    if it == 0:
+        text += " (the starts' first runs)"
+    elif np.isfinite(where["loss"]):
+        text += f" (the lowest loss so far {where['loss']:.6g})"
+    return text + ": the fit did not finish, and no fit is reported"
 
 
 def calibrate_each(
@@ -767,12 +835,20 @@ def _check_names(scene, names) -> None:
     if not names:
         raise ValueError(f"fit must name at least one constant; fittable: {', '.join(fittable(scene))}")
     check_names(scene, names)
+    static, idle = static_parameters(scene), unused(scene)
     for n in names:
         if n in NOT_FITTED:
             raise ValueError(
                 f"{n} is {NOT_FITTED[n]}, not a material constant; it cannot be fitted; "
                 f"fittable: {', '.join(fittable(scene))}"
             )
+        if n in static:
+            raise ValueError(
+                f"{n} is static (it places the particles when the run is compiled), so it has no "
+                f"derivative; it cannot be fitted; fittable: {', '.join(fittable(scene))}"
+            )
+        if n in idle:
+            raise ValueError(f"{n} cannot be fitted: {idle[n]}; fittable: {', '.join(fittable(scene))}")
     if len(set(names)) != len(names):
         raise ValueError(f"fit names a parameter twice: {names}")
 
@@ -835,11 +911,20 @@ def _loss(r, L):
     return np.mean(np.square(r / L), axis=-1)
 
 
-def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar) -> dict:
+def _lowest(losses) -> float:
+    """The lowest finite loss of an iteration's starts (NaN where every start broke down)."""
+    losses = np.asarray(losses, dtype=float)
+    finite = losses[np.isfinite(losses)]
+    return float(finite.min()) if finite.size else float("nan")
+
+
+def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, where=None) -> dict:
     """Levenberg-Marquardt, damping isotropic in ``theta`` (the fit's variables are logarithmic, so it
     damps relative changes alike), batched over members: a host loop around one compiled ``vmap`` of
     residuals and Jacobian per iteration. A trial that breaks down or raises the loss is rejected and
-    the damping raised; a broken run's loss is never used."""
+    the damping raised; a broken run's loss is never used. ``where`` (a dict), when given, holds the
+    iteration under way and the lowest loss so far (for a Ctrl-C's message)."""
+    where = {} if where is None else where
     B, p = start_theta.shape
     theta = np.zeros((B, p))
     r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
@@ -854,6 +939,7 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar) -> d
     history = [np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan)]
     it = 0
     for it in range(1, iterations + 1):
+        where.update(iteration=it, loss=_lowest(history[-1]))
         active = state == "running"
         if not active.any():
             it -= 1
@@ -943,9 +1029,11 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar) -> d
     )
 
 
-def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar) -> dict:
+def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar, where=None) -> dict:
     """L-BFGS (optax, zoom line search) or Adam on the loss, batched over starts; a start whose run
-    breaks down (a non-finite loss) stops there and is reported, its slot following a live start."""
+    breaks down (a non-finite loss) stops there and is reported, its slot following a live start.
+    ``where``, when given, holds the iteration under way and the lowest loss so far."""
+    where = {} if where is None else where
     B, p = start_theta.shape
     dtype = model.scene.h.dtype
 
@@ -985,7 +1073,8 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     history = []
     it = 0
     for it in range(1, iterations + 1):
-        new_theta, new_state, value = update_all(theta, state, run_start, run_data)
+        where.update(iteration=it, loss=_lowest(history[-1]) if history else float("nan"))
+        new_theta, new_state, value = computed(update_all, theta, state, run_start, run_data)
         value = np.asarray(value)
         broke = alive & ~(np.isfinite(value) & np.all(np.isfinite(np.asarray(new_theta)), axis=1))
         for b in np.flatnonzero(broke):  # say why, from a plain run at that start's trial values

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+import signal
+import threading
 from collections.abc import Mapping
 
 import equinox as eqx
@@ -32,9 +34,11 @@ from . import _memory
 from . import status as st_bits
 from ._checks import brief, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
+from ._step import check_scene
 from .interpolators import AbstractInterpolator
+from .long_run import InterruptLatch, wait
 from .scenes import AbstractScene
-from .sensitivity import check_names
+from .sensitivity import continuous_parameters, static_parameters
 
 
 @dataclasses.dataclass
@@ -107,6 +111,63 @@ class Ensemble:
         return jax.tree_util.tree_map(lambda a: a[k], self.solution)
 
 
+def variable_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
+    """The scene's parameters that ``ensemble``'s ``vary`` may name (besides the run's ``RUN_NAMES``):
+    its continuous parameters but the static ones (``static_parameters``).
+
+    Args:
+        scene: a scene or a scene class.
+
+    Returns:
+        The names, in the scene's order.
+    """
+    static = static_parameters(scene)
+    return tuple(n for n in continuous_parameters(scene) if n not in static and n != "dt")
+
+
+def computed(fn, *args):
+    """``fn(*args)`` with every array it returns computed, answering Ctrl-C at once.
+
+    Where the process's SIGINT handler is an ``InterruptLatch`` (the command line installs one) and
+    this is the main thread, the call (tracing, compiling and running) goes to a worker thread while
+    this one waits, so that a Ctrl-C during a long compiled call is answered at once: the call is
+    abandoned, not stopped (the command line then exits without waiting for it). Elsewhere (a library
+    caller, which may hold thread-local JAX settings) the call runs here and ``long_run.wait`` polls
+    its result, which answers Ctrl-C at once where the device computes asynchronously (a GPU) and
+    after the call on a CPU, which computes in the calling thread.
+
+    Args:
+        fn: a function of arrays, usually compiled.
+        *args: its arguments.
+
+    Returns:
+        Its result, computed.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C while it computed.
+    """
+    latch = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not isinstance(latch, InterruptLatch):
+        return wait(fn(*args))
+    box = {}
+
+    def work():
+        try:
+            box["out"] = jax.block_until_ready(fn(*args))
+        except BaseException as e:  # handed to the waiting thread, which raises it
+            box["error"] = e
+
+    worker = threading.Thread(target=work, name="jaxmpm-compute", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.05)
+        if latch.pending:  # a Ctrl-C that Python ignored where it landed
+            raise KeyboardInterrupt
+    if "error" in box:
+        raise box["error"]
+    return box["out"]
+
+
 RUN_NAMES = ("dt", "t_end", "cfl")
 """The run's own continuous inputs that ``vary`` may name besides the scene's parameters."""
 
@@ -136,6 +197,30 @@ def _run_batch(model, dt, batch: dict, steps: int, saveat, block):
 def _with(scene: AbstractScene, values: dict) -> AbstractScene:
     names = tuple(values)
     return eqx.tree_at(lambda s: tuple(getattr(s, n) for n in names), scene, tuple(values[n] for n in names))
+
+
+def _check_vary_names(scene: AbstractScene, vary: Mapping) -> None:
+    """Each name of ``vary`` one that an ensemble can vary: the run's ``RUN_NAMES`` or one of the
+    scene's ``variable_parameters``; the others refused by name, with the names that can vary."""
+    check_scene(scene)
+    allowed = variable_parameters(scene)
+    can = f"parameters that can vary: {', '.join(allowed + RUN_NAMES)}"
+    structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
+    for k in vary:
+        if k in RUN_NAMES or k in allowed:
+            continue
+        if k in static_parameters(scene):
+            raise ValueError(
+                f"vary names {k!r}, a static parameter of {scene.name}: it places the particles when "
+                f"the run is compiled, so one compiled ensemble cannot vary it; run one ensemble per "
+                f"value of {k}, set on the scene; {can}"
+            )
+        if k in structural:
+            raise ValueError(
+                f"vary names {k!r}, a structural parameter of {scene.name} (fixed when the run is "
+                f"compiled); {can}"
+            )
+        raise ValueError(f"vary names an unknown parameter {k!r} of {scene.name}; {can}")
 
 
 def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
@@ -185,9 +270,9 @@ def ensemble(
     Args:
         scene: the base scene.
         interpolator: the method.
-        vary: a dict of continuous parameter names (the scene's parameters; with fixed steps
-            ``dt``, with ``t_end``: ``t_end`` and ``cfl``) to arrays of equal length: one value per
-            member.
+        vary: a dict of continuous parameter names (the scene's ``variable_parameters``, not its
+            static ones such as the shock tube's ``x0``; with fixed steps ``dt``, with ``t_end``:
+            ``t_end`` and ``cfl``) to arrays of equal length: one value per member.
         devices: the devices to shard the members over: a sequence of devices, or a count ``k`` (the
             first ``k`` of ``jax.devices()``), as for ``simulate`` (default: every local device).
         **simulate_kwargs: as for ``simulate`` (``dt``, ``steps`` or ``t_end``, ``max_steps``, ...);
@@ -197,11 +282,13 @@ def ensemble(
         An ``Ensemble``.
 
     Raises:
-        ValueError: bad ``vary`` (not a dict, unknown or structural names, a name the run does not
-            use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``; values that are not
+        ValueError: bad ``vary`` (not a dict, unknown, structural or static names, a name the run
+            does not use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``; values that are not
             real numbers, arrays of different lengths, values that are not finite or that the
             parameter does not allow), bad run arguments, or more members than the device's memory
             holds (estimated before anything is allocated).
+        KeyboardInterrupt: Ctrl-C while the members ran (``computed``: at once under the command
+            line): nothing is returned.
     """
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
     if not isinstance(vary, Mapping):
@@ -211,7 +298,7 @@ def ensemble(
         )
     if not vary:
         raise ValueError("vary must name at least one parameter with its values per member")
-    check_names(scene, [k for k in vary if k not in RUN_NAMES] or ["dt"])
+    _check_vary_names(scene, vary)
     to_end = simulate_kwargs.get("t_end") is not None
     for k in vary:
         if k in TO_END_NAMES and not to_end:
@@ -260,7 +347,12 @@ def ensemble(
         sharding = NamedSharding(Mesh(np.asarray(devices), ("members",)), PartitionSpec("members"))
         batch = jax.device_put(batch, sharding)
 
-    sol = _run_batch(model, dt, batch, steps, saveat, block)
+    try:
+        sol = computed(_run_batch, model, dt, batch, steps, saveat, block)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(
+            f"interrupted while the ensemble's {n} members ran (one compiled call): no member is reported"
+        ) from None
     sol = jax.tree_util.tree_map(lambda a: a[:n], sol)
     if not sol.state.status.is_fully_addressable:
         # Several processes: each holds its own members' states; every process gets every member's

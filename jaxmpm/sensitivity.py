@@ -20,6 +20,7 @@ relative to the nodes. ``dt`` is taken at a fixed number of steps, so the final 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 
 import equinox as eqx
@@ -61,6 +62,23 @@ def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[s
     return tuple(k for k, v in cls.parameters().items() if isinstance(v, float)) + ("dt",)
 
 
+def static_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
+    """The scene's float parameters that are static fields: fixed when a run is compiled, because they
+    place the particles (the shock tube's and the interface's ``x0``, the Gurney scenes' ``split``:
+    which particles belong to which region). No traced value can stand for them, so an ensemble cannot
+    vary them in its one compiled call, and neither a gradient nor a fit can take their derivative.
+
+    Args:
+        scene: a scene or a scene class.
+
+    Returns:
+        The names, in the scene's order (empty for most scenes).
+    """
+    cls = scene if isinstance(scene, type) else type(scene)
+    static = {f.name for f in dataclasses.fields(cls) if f.metadata.get("static", False)}
+    return tuple(n for n in continuous_parameters(cls) if n in static)
+
+
 def check_names(scene: AbstractScene, names) -> None:
     """Check names for a gradient.
 
@@ -71,15 +89,21 @@ def check_names(scene: AbstractScene, names) -> None:
     Raises:
         ValueError: ``scene`` is not a jaxmpm scene (``continuous_parameters``), ``names`` is not a
             sequence of names, no name, or a name that is not a continuous parameter of ``scene`` (or
-            ``dt``).
+            ``dt``), or is a static one (``static_parameters``).
     """
     if isinstance(names, str):
         raise ValueError(f"names must be a sequence of parameter names, got the string {names!r}")
     if not isinstance(names, Iterable):
         raise ValueError(f"names must be a sequence of parameter names such as ['beta'], got {brief(names)}")
-    allowed = continuous_parameters(scene)
+    static = static_parameters(scene)
+    allowed = tuple(n for n in continuous_parameters(scene) if n not in static)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
     for name in names:
+        if name in static:
+            raise ValueError(
+                f"{name} is static in {scene.name} (it places the particles when the run is compiled), so "
+                f"it has no gradient; differentiable parameters of {scene.name}: {', '.join(allowed)}"
+            )
         if name in structural:
             raise ValueError(
                 f"{name} is structural (an integer), so it has no gradient; "

@@ -12,6 +12,7 @@ import jaxmpm as jm
 from jaxmpm._checks import check_positive
 from jaxmpm._simulate import prepare
 from jaxmpm.scenes.gas_slab import pad_for
+from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
 from ._common import UsageError, add_process_options, devices_option, print_json, start_processes
@@ -57,7 +58,9 @@ def add_parser(subparsers) -> None:
         nargs="?",
         const="2.0,0.2",
         metavar="QUAD,LIN",
-        help="artificial viscosity in the model (default coefficients 2.0,0.2; gurney-slab needs it)",
+        help="artificial viscosity in compression in the model (default coefficients 2.0,0.2); "
+        "gurney-slab's detonation front is a shock, which rings without it. No shear coefficient: both "
+        "scenes are 1D, where a shear viscosity vanishes",
     )
     p.add_argument("--dt", type=float, help="model time step (default: CFL 0.2 at the start values)")
     p.add_argument(
@@ -172,7 +175,8 @@ def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.n
 
 
 def fit_names(scene: jm.AbstractScene, text: str) -> list[str]:
-    """The names of ``--fit``, checked: material constants of the scene, each once.
+    """The names of ``--fit``, checked against the scene's kind: its constants, each once. Which of
+    them this scene's run uses (the Gurney slab's ``explosive``) is ``check_used``'s.
 
     Args:
         scene: the scene.
@@ -183,24 +187,77 @@ def fit_names(scene: jm.AbstractScene, text: str) -> list[str]:
 
     Raises:
         UsageError: no name, a name given twice, or a name that cannot be fitted (``h`` and ``dt``
-            are not material constants; structural and unknown names are not parameters), with
-            the names that can.
+            are not material constants; a static parameter such as the Gurney slab's ``split`` has
+            no derivative; structural and unknown names are not parameters), with the names that
+            can.
     """
     names = _assign.comma_list(text, "--fit")
     allowed = jm.calibrate.fittable(scene)
     if not names:
         raise UsageError(f"--fit: name at least one parameter; fittable: {', '.join(allowed)}")
+    later = jm.calibrate.unused(scene)  # named by check_used
     for n in names:
-        if n in allowed:
+        if n in allowed or n in later:
             continue
         if n in jm.calibrate.NOT_FITTED:
             why = f"{n} is {jm.calibrate.NOT_FITTED[n]}, not a material constant"
+        elif n in static_parameters(scene):
+            why = f"{n} is static (it places the particles when the run is compiled), so it has no derivative"
         elif n in type(scene).parameters():
             why = f"{n} is structural (an integer), not a material constant"
         else:
             why = f"unknown parameter {n!r}"
         raise UsageError(f"--fit: {why}; fittable: {', '.join(allowed)}")
     return names
+
+
+def check_used(scene: jm.AbstractScene, names: list[str]) -> None:
+    """Refuse a name of ``--fit`` that this scene's run does not use (``jm.calibrate.unused``: the
+    Gurney slab's ``sqrt_2E``, and the constants its ``explosive`` does not take).
+
+    Args:
+        scene: the scene.
+        names: the names of ``--fit`` (``fit_names``).
+
+    Raises:
+        UsageError: such a name, with why and the names that can be fitted.
+    """
+    idle = jm.calibrate.unused(scene)
+    for n in names:
+        if n in idle:
+            raise UsageError(
+                f"--fit: {n} cannot be fitted: {idle[n]}; fittable: {', '.join(jm.calibrate.fittable(scene))}"
+            )
+
+
+def viscosity_option(text: str | None) -> jm.ArtificialViscosity | None:
+    """``--viscosity QUAD,LIN`` as the model's artificial viscosity (``None``: none).
+
+    Args:
+        text: the option's value (``"2.0,0.2"`` when given bare), or ``None``.
+
+    Returns:
+        The ``ArtificialViscosity`` (no shear viscosity), or ``None``.
+
+    Raises:
+        UsageError: not two numbers >= 0; a third (the shear coefficient of ``jaxmpm run``) is refused
+            by name: the scenes ``calibrate`` fits are 1D, where a shear viscosity vanishes.
+    """
+    if text is None:
+        return None
+    items = text.split(",")
+    if len(items) == 3:
+        raise UsageError(
+            f"--viscosity takes QUAD,LIN, got 3 numbers {text!r}: a third, SHEAR (as `jaxmpm run` takes "
+            "it), would be a shear viscosity, which vanishes in 1D, and gas-slab and gurney-slab are 1D"
+        )
+    try:
+        if len(items) != 2:
+            raise ValueError(f"{len(items)} number" + ("" if len(items) == 1 else "s"))
+        c_quad, c_lin = (float(c) for c in items)
+        return jm.ArtificialViscosity(c_quad=c_quad, c_lin=c_lin)
+    except ValueError as e:
+        raise UsageError(f"--viscosity must be QUAD,LIN (two numbers >= 0), got {text!r}: {e}") from None
 
 
 _MOST_STEPS = 2**31 - 1  # the bound of a step counter
@@ -278,7 +335,15 @@ def command(args) -> int:
                 raise UsageError(str(e)) from None
     if not 0.0 < args.max_correlation <= 1.0:  # NaN fails too
         raise UsageError(f"--max-correlation must be a number in (0, 1], got {args.max_correlation}")
+    viscosity = viscosity_option(args.viscosity)
     t, x = read_trajectory(args.data, column)
+    check_used(scene, names)
+    if column == "v_plate" and viscosity is None:
+        print(
+            f"jaxmpm: note: calibrate {args.scene} runs without artificial viscosity; its detonation front "
+            "is a shock, which rings without it: --viscosity (coefficients 2.0,0.2) adds it",
+            file=sys.stderr,
+        )
     # a grid for the gas slab's data and the start's expansion, with room for trial runs
     if "pad" not in given and column == "x_free":
         start_reach = max(s.max_reach() for s in start_scenes)
@@ -300,7 +365,6 @@ def command(args) -> int:
         else 0.2 * float(scene.h) / max(float(s.wave_speed) for s in start_scenes)
     )
     interp = jm.INTERPOLATORS[args.interpolator]()
-    viscosity = _assign.viscosity(args.viscosity)
     _check_model_run(scene, interp, args.data, t, dt)
     try:
         with warnings.catch_warnings():  # the library's warning is printed once, below
@@ -345,6 +409,7 @@ def command(args) -> int:
         method=args.method,
         dt=dt,
         pad=scene.pad,
+        viscosity=None if viscosity is None else viscosity.coefficients(),
         start=start_values[fit.best_start],
         starts=start_values,
         best_start=fit.best_start,

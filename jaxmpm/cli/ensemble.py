@@ -12,7 +12,9 @@ import jaxmpm as jm
 from jaxmpm import _memory
 from jaxmpm._checks import check_int, check_positive
 from jaxmpm._simulate import prepare
+from jaxmpm.ensemble import variable_parameters
 from jaxmpm.scenes.gas_slab import pad_for
+from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
 from ._common import UsageError, print_json
@@ -38,7 +40,12 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("scene", help="scene name (see `jaxmpm scenes`)")
     p.add_argument("params", nargs="*", metavar="name=value", help="fixed scene parameters")
-    p.add_argument("--vary", action="append", metavar="NAME=LOW:HIGH", help="repeatable (or --from-fit)")
+    p.add_argument(
+        "--vary",
+        action="append",
+        metavar="NAME=LOW:HIGH",
+        help="a continuous scene parameter, not a static one (x0, split); repeatable (or --from-fit)",
+    )
     p.add_argument(
         "--from-fit",
         metavar="FIT.json",
@@ -62,6 +69,9 @@ def command(args) -> int:
     """Sample ``--members`` parameter sets uniformly in the ``--vary`` ranges, run them as one ensemble,
     and print each member's status, failure and result.
 
+    A member that broke down is reported with its status, failure, time and steps; its measures
+    (``x_free``, ``F_max_rel``) are withheld: null in the JSON, ``withheld`` in the table.
+
     Args:
         args: the parsed command line.
 
@@ -74,7 +84,14 @@ def command(args) -> int:
         UsageError: bad input.
     """
     scene = _assign.scene(args.scene, args.params)
-    varying = [n for n in jm.sensitivity.continuous_parameters(scene) if n != "dt"]
+    varying = list(variable_parameters(scene))
+    for k in _assign.names(args.vary or []):
+        if k in static_parameters(scene):
+            raise UsageError(
+                f"--vary: {k} is static in {scene.name} (it places the particles when the run is "
+                f"compiled), so one compiled ensemble cannot vary it: give it as a scene parameter "
+                f"({k}=...) and run an ensemble per value; parameters that can vary: {', '.join(varying)}"
+            )
     ranges = _assign.ranges(args.vary or [], varying)
     fit = read_fit(args.from_fit, scene, varying) if args.from_fit else None
     if not ranges and fit is None:
@@ -177,14 +194,21 @@ def command(args) -> int:
             r["failure"] = dict(
                 step=failure["step"], particle=failure["particle"], quantities=failure["quantities"]
             )
+        # A member that broke down stopped at its last good state, not at the end: its measures are
+        # withheld (null), never reported as if it had finished.
+        broke = failure is not None or r["status"] != 0
         if scene.name == "gas-slab":
             ms = member.state
-            r["x_free"] = float(jm.scenes.gas_slab.free_surface(ms.x, ms.F, ms.corners, member.body))
-        if scene.exact is not None and failure is None:  # a failed member's error says nothing
-            err = jm.errors(
-                type(scene)(**{**scene.parameter_values(), **r["params"]}), member.state, member.body
+            r["x_free"] = (
+                None if broke else float(jm.scenes.gas_slab.free_surface(ms.x, ms.F, ms.corners, member.body))
             )
-            r["F_max_rel"] = float(err["F_max_rel"])
+        if scene.exact is not None:
+            r["F_max_rel"] = None
+            if not broke:  # null too past the time the exact solution holds (t_valid)
+                err = jm.errors(
+                    type(scene)(**{**scene.parameter_values(), **r["params"]}), member.state, member.body
+                )
+                r["F_max_rel"] = None if err["F_max_rel"] is None else float(err["F_max_rel"])
         results.append(r)
     out = dict(
         scene=args.scene,
@@ -208,8 +232,17 @@ def command(args) -> int:
         f"wall_s={wall:.3f}"
     )
     for i, r in enumerate(results):
-        extra = f"  x_free={r['x_free']:.6g}" if "x_free" in r else ""
-        extra += f"  F_max_rel={r['F_max_rel']:.3g}" if "F_max_rel" in r else ""
+        broke = r["status"] != 0 or "failure" in r
+        extra = ""
+        if "x_free" in r:
+            extra += "  x_free=" + ("withheld" if broke else f"{r['x_free']:.6g}")
+        if "F_max_rel" in r:
+            if broke:
+                extra += "  F_max_rel=withheld"
+            elif r["F_max_rel"] is None:
+                extra += "  F_max_rel=none (past t_valid, where the exact solution stops holding)"
+            else:
+                extra += f"  F_max_rel={r['F_max_rel']:.3g}"
         fail = (
             f"  FAILED at step {r['failure']['step']}: {r['failure']['quantities'][0]}"
             if "failure" in r

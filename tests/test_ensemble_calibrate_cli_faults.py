@@ -1,0 +1,347 @@
+"""Faults of `jaxmpm ensemble` and `jaxmpm calibrate`: the measures of members that broke down are
+withheld, static parameters (x0, split) and constants a run does not use are refused by name, the
+calibration's --viscosity takes QUAD,LIN and is reported, and Ctrl-C is answered at once (status 130,
+one line naming the iteration)."""
+
+import json
+import os
+import signal
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from helpers import usage
+
+import jaxmpm as jm
+import jaxmpm.calibrate as cal
+from jaxmpm.cli import main
+
+ensemble_module = sys.modules["jaxmpm.ensemble"]  # jm.ensemble is the function
+
+# gas-slab: dt = 1e-4 on h = 0.25 is beyond the stable limit where c = sqrt(1.4 P0) > 2500 (P0 > 4.5e6)
+SLAB = ["gas-slab", "cells=4", "h=0.25", "pad=8"]
+SHORT = ["--dt", "1e-4", "--steps", "3"]
+
+
+def _json_run(capsys, argv, status=0):
+    rc = main(argv + ["--json"])
+    captured = capsys.readouterr()
+    assert rc == status, captured.err
+    assert "Traceback" not in captured.err
+    return json.loads(captured.out)
+
+
+# -- ensemble: the measures of a member that broke down are withheld ---------------------------------
+
+
+@pytest.mark.slow
+def test_ensemble_withholds_x_free_of_members_that_broke_down(capsys):
+    argv = ["ensemble", *SLAB, "--vary", "P0=2e5:1.2e7", "--members", "6", *SHORT]
+    out = _json_run(capsys, argv)
+    broke = [r for r in out["results"] if r["status"] != 0]
+    ran = [r for r in out["results"] if r["status"] == 0]
+    assert broke and ran  # both kinds in the sample
+    assert any(r["steps"] > 0 for r in broke)  # one broke after steps that moved its free surface
+    for r in broke:
+        assert "failure" in r and "x_free" in r and r["x_free"] is None
+    for r in ran:
+        assert r["x_free"] > 1.0  # the slab's free surface, past its start at x = 1
+    assert main(argv) == 0  # the table marks the withheld measure
+    lines = capsys.readouterr().out.splitlines()[1:]
+    assert len(lines) == 6
+    for line, r in zip(lines, out["results"]):
+        assert ("x_free=withheld" in line) == (r["status"] != 0)
+        assert ("FAILED" in line) == (r["status"] != 0)
+
+
+@pytest.mark.slow
+def test_ensemble_withholds_f_max_rel_of_members_that_broke_down_and_keeps_the_key(capsys):
+    argv = ["ensemble", "gas-expansion", "cells=2", "--vary", "beta=100:20000", "--members", "4"]
+    out = _json_run(capsys, argv + ["--dt", "1e-4", "--steps", "10"])
+    statuses = [r["status"] for r in out["results"]]
+    assert 0 in statuses and any(statuses)
+    for r in out["results"]:
+        assert "F_max_rel" in r
+        assert (r["F_max_rel"] is None) == (r["status"] != 0)
+
+
+@pytest.mark.slow
+def test_ensemble_past_t_valid_reports_f_max_rel_null_not_a_traceback(capsys):
+    # t_valid of this vacuum expansion is 0.106; the run goes to 0.15
+    argv = ["ensemble", "vacuum-expansion", "cells=4", "--vary", "gamma=1.3:1.5", "--members", "2"]
+    argv += ["--dt", "0.005", "--steps", "30"]
+    out = _json_run(capsys, argv)
+    assert out["ok"] == 2 and [r["F_max_rel"] for r in out["results"]] == [None, None]
+    assert main(argv) == 0
+    assert capsys.readouterr().out.count("F_max_rel=none (past t_valid") == 2
+
+
+# -- ensemble: what --vary may name ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "scene, name, params",
+    [
+        ("shock-tube", "x0", ["cells=20"]),
+        ("interface", "x0", ["cells=20"]),
+        ("gurney-slab", "split", ["cells=20", "pad=80"]),
+    ],
+)
+def test_ensemble_refuses_a_static_parameter_by_name_and_lists_what_can_vary(capsys, scene, name, params):
+    argv = ["ensemble", scene, *params, "--vary", f"{name}=0.4:0.6", "--members", "2", *SHORT]
+    line = usage(capsys, argv, f"--vary: {name} is static in {scene}")
+    listed = line.split("parameters that can vary: ")[1].split(", ")
+    assert name not in listed
+    assert set(listed) == set(ensemble_module.variable_parameters(jm.SCENES[scene]))
+    with pytest.raises(ValueError, match=rf"vary names '{name}', a static parameter of {scene}"):
+        jm.ensemble(jm.SCENES[scene](cells=20), jm.CPDI(), {name: [0.4, 0.6]}, dt=1e-8, steps=1)
+
+
+def test_ensemble_lists_no_static_parameter_for_an_unknown_name(capsys):
+    line = usage(capsys, ["ensemble", "shock-tube", "--vary", "foo=1:2", "--members", "2"], "'foo'")
+    assert "x0" not in line.split("allowed: ")[1].split(", ")
+    with pytest.raises(ValueError, match="unknown parameter 'foo'.*can vary: rho_l") as info:
+        jm.ensemble(jm.ShockTube(cells=20), jm.CPDI(), {"foo": [1.0, 2.0]}, dt=1e-8, steps=1)
+    assert "x0" not in str(info.value)
+    with pytest.raises(ValueError, match="'cells', a structural parameter of shock-tube"):
+        jm.ensemble(jm.ShockTube(cells=20), jm.CPDI(), {"cells": [1.0, 2.0]}, dt=1e-8, steps=1)
+
+
+def test_static_parameters_are_the_static_float_fields():
+    assert jm.sensitivity.static_parameters(jm.ShockTube) == ("x0",)
+    assert jm.sensitivity.static_parameters(jm.GurneySlab()) == ("split",)
+    assert jm.sensitivity.static_parameters(jm.GasSlab) == ()
+    assert "split" not in ensemble_module.variable_parameters(jm.GurneyCylinder)
+
+
+def test_a_gradient_refuses_a_static_parameter_by_name():
+    with pytest.raises(ValueError, match="x0 is static in shock-tube .* so it has no gradient") as info:
+        jm.gradient(jm.ShockTube(cells=20), jm.CPDI(), ["x0"], dt=1e-5, steps=2, error="separation_max")
+    assert str(info.value).endswith(
+        "differentiable parameters of shock-tube: rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, h, dt"
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "scene, kw", [("shock-tube", dict(cells=8)), ("gurney-slab", dict(cells=20, pad=20))]
+)
+def test_every_parameter_the_ensemble_lists_can_vary(scene, kw):
+    """Every name of variable_parameters varied at once, by 1%, in one ensemble: it runs."""
+    sc = jm.SCENES[scene](**kw)
+    names = ensemble_module.variable_parameters(sc)
+    vary = {n: [float(getattr(sc, n)), 1.01 * float(getattr(sc, n))] for n in names}
+    dt = 0.01 * float(sc.h) / float(sc.wave_speed)
+    ens = jm.ensemble(sc, jm.CPDI(), vary, dt=dt, steps=2)
+    assert ens.status.tolist() == [0, 0] and set(ens.params) == set(names)
+
+
+# -- calibrate: what --fit may name, --viscosity ----------------------------------------------------
+
+
+@pytest.fixture
+def plate_data(tmp_path):
+    path = tmp_path / "pdv.csv"
+    path.write_text("t,v_plate\n0,0\n2e-6,500\n4e-6,900\n6e-6,1100\n")
+    return str(path)
+
+
+GURNEY = ["calibrate", "gurney-slab", "cells=20", "pad=80", "--no-progress", "--iterations", "1"]
+
+
+@pytest.mark.parametrize(
+    "explosive, fit, match",
+    [
+        ("gamma-law", "split", "--fit: split is static (it places the particles when the run is compiled)"),
+        ("gamma-law", "D,A", "--fit: A cannot be fitted: the run of explosive=gamma-law does not use it"),
+        ("gamma-law", "sqrt_2E", "--fit: sqrt_2E cannot be fitted: it is the constant of Gurney's formula"),
+        ("jwl", "A,gamma", "--fit: gamma cannot be fitted: the run of explosive=jwl does not use it"),
+        ("compb", "D", "--fit: D cannot be fitted: the run of explosive=compb does not use it"),
+    ],
+)
+def test_calibrate_refuses_what_the_gurney_run_cannot_fit(capsys, plate_data, explosive, fit, match):
+    argv = [*GURNEY, f"explosive={explosive}", "--data", plate_data, "--viscosity", "--fit", fit]
+    line = usage(capsys, argv, match)
+    fittable = line.split("fittable: ")[1].split(", ")
+    assert fittable == list(cal.fittable(jm.GurneySlab(explosive=explosive)))
+    assert "split" not in fittable and "sqrt_2E" not in fittable
+    with pytest.raises(ValueError, match=fit.split(",")[-1] + " (is static|cannot be fitted)"):
+        cal.calibrate(
+            jm.GurneySlab(explosive=explosive),
+            jm.CPDI(),
+            [0.0, 1e-6],
+            [0.0, 1.0],
+            fit=fit.split(","),
+            dt=1e-8,
+        )
+
+
+def test_fittable_names_only_constants_the_run_uses():
+    assert cal.fittable(jm.GurneySlab(explosive="gamma-law")) == ("D", "gamma", "rho0", "burn_width", "L")
+    assert cal.fittable(jm.GurneySlab(explosive="jwl")) == (
+        "D",
+        "rho0",
+        "burn_width",
+        "A",
+        "B",
+        "R1",
+        "R2",
+        "w",
+        "L",
+    )
+    assert cal.fittable(jm.GurneySlab()) == ("burn_width", "L")  # Comp B's row has its own constants
+    assert "split" not in cal.fittable(jm.GurneySlab) and "sqrt_2E" not in cal.fittable(jm.GurneySlab)
+    assert cal.fittable(jm.GasSlab()) == ("P0", "gamma", "p_atm", "rho0")
+
+
+@pytest.mark.slow
+def test_calibrate_gurney_slab_without_viscosity_runs_with_a_note(capsys, plate_data):
+    argv = [*GURNEY, "explosive=gamma-law", "--data", plate_data, "--fit", "D", "--json"]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "jaxmpm: note: calibrate gurney-slab runs without artificial viscosity" in err
+    assert json.loads(out)["viscosity"] is None
+    with pytest.raises(SystemExit) as info:  # argparse's --help
+        main(["calibrate", "--help"])
+    assert info.value.code == 0
+    assert "gurney-slab's detonation front is a shock" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize(
+    "value, match",
+    [
+        ("2,0.2,5", "--viscosity takes QUAD,LIN, got 3 numbers '2,0.2,5': a third, SHEAR"),
+        ("2", "--viscosity must be QUAD,LIN (two numbers >= 0), got '2': 1 number"),
+        ("2,-1", "--viscosity must be QUAD,LIN (two numbers >= 0), got '2,-1': c_lin must be >= 0"),
+        ("2,x", "--viscosity must be QUAD,LIN (two numbers >= 0), got '2,x'"),
+    ],
+)
+def test_calibrate_viscosity_takes_quad_and_lin(capsys, tmp_path, value, match):
+    data = tmp_path / "traj.csv"
+    data.write_text("t,x_free\n0,1\n2e-4,1.1\n4e-4,1.2\n")
+    usage(capsys, ["calibrate", *SLAB, "--data", str(data), "--viscosity", value], match)
+
+
+@pytest.fixture
+def slab_data(tmp_path):
+    path = tmp_path / "traj.csv"
+    path.write_text("t,x_free\n0,1\n2e-4,1.1\n4e-4,1.2\n6e-4,1.3\n")
+    return str(path)
+
+
+SLAB_FIT = ["calibrate", *SLAB, "--dt", "5e-5", "--no-progress"]
+
+
+@pytest.mark.slow
+def test_calibrate_json_reports_the_viscosity(capsys, slab_data):
+    argv = [*SLAB_FIT, "--data", slab_data, "--fit", "gamma", "--iterations", "1"]
+    out = _json_run(capsys, [*argv, "--viscosity", "1.5,0.1"])
+    assert out["viscosity"] == [1.5, 0.1]
+    out = _json_run(capsys, argv)
+    assert "viscosity" in out and out["viscosity"] is None
+
+
+# -- Ctrl-C ------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def main_thread():
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers can only be set in the main thread")
+
+
+def _interrupt_and_block(real, on_call: int):
+    """``real``, wrapped: its ``on_call``-th call sends SIGINT to this process and then blocks (up to
+    60 s, until ``release`` is set) as a long compiled call does, deaf to the signal (a compiled call
+    runs in C; a KeyboardInterrupt raised in this thread meanwhile is dropped, as Python would only
+    raise it after the call); the others pass through."""
+    release = threading.Event()
+    calls = {"n": 0, "sent": None}
+
+    def wrapped(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == on_call:
+            deadline = time.perf_counter() + 60.0
+            while not release.is_set() and time.perf_counter() < deadline:
+                try:
+                    if calls["sent"] is None:
+                        calls["sent"] = time.perf_counter()
+                        os.kill(os.getpid(), signal.SIGINT)
+                    release.wait(0.05)
+                except KeyboardInterrupt:
+                    pass
+        return real(*args, **kwargs)
+
+    return wrapped, release, calls
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("main_thread")
+def test_ctrl_c_during_a_fit_is_answered_at_once_naming_the_iteration(capsys, monkeypatch, slab_data):
+    """The second residual-and-Jacobian call (iteration 1's trial) gets SIGINT and does not return
+    for 60 s: the command answers at once, with one line, status 130."""
+    released = []
+    init = cal._Model.__init__
+
+    def patched(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self._rj, release, calls = _interrupt_and_block(self._rj, on_call=2)
+        released.append((release, calls))
+
+    monkeypatch.setattr(cal._Model, "__init__", patched)
+    try:
+        rc = main([*SLAB_FIT, "--data", slab_data, "--iterations", "3", "--fit", "gamma,P0", "--json"])
+        answered = time.perf_counter()
+    finally:
+        for release, _ in released:
+            release.set()
+    captured = capsys.readouterr()
+    ((_, calls),) = released
+    assert rc == 130 and captured.out == ""
+    assert answered - calls["sent"] < 10.0  # not the 60 s the call blocks for
+    (line,) = captured.err.strip().splitlines()
+    assert line.startswith("jaxmpm: interrupted at iteration 1 of 3 (the lowest loss so far ")
+    assert line.endswith("the fit did not finish, and no fit is reported")
+
+
+@pytest.mark.slow
+def test_a_library_fit_interrupted_between_iterations_says_where(monkeypatch):
+    init = cal._Model.__init__
+
+    def patched(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        real, calls = self._rj, {"n": 0}
+
+        def rj(*a):
+            calls["n"] += 1
+            if calls["n"] == 3:
+                raise KeyboardInterrupt
+            return real(*a)
+
+        self._rj = rj
+
+    monkeypatch.setattr(cal._Model, "__init__", patched)
+    ts = np.array([0.0, 2e-4, 4e-4, 6e-4])
+    xs = np.array([1.0, 1.1, 1.2, 1.3])
+    sc = jm.GasSlab(cells=4, h=0.25, pad=8)
+    with pytest.raises(KeyboardInterrupt, match=r"^interrupted at iteration 2 of 5 \(the lowest loss so far"):
+        cal.calibrate(sc, jm.CPDI(), ts, xs, fit=("gamma", "P0"), dt=5e-5, iterations=5, progress=False)
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("main_thread")
+def test_ctrl_c_during_an_ensemble_is_answered_at_once(capsys, monkeypatch):
+    wrapped, release, calls = _interrupt_and_block(ensemble_module._run_batch, on_call=1)
+    monkeypatch.setattr(ensemble_module, "_run_batch", wrapped)
+    try:
+        rc = main(["ensemble", *SLAB, "--vary", "P0=2e5:3e5", "--members", "3", *SHORT])
+        answered = time.perf_counter()
+    finally:
+        release.set()
+    captured = capsys.readouterr()
+    assert rc == 130 and captured.out == "" and answered - calls["sent"] < 10.0
+    assert captured.err.strip().splitlines() == [
+        "jaxmpm: interrupted while the ensemble's 3 members ran (one compiled call): no member is reported"
+    ]
