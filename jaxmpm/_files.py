@@ -2,16 +2,35 @@
 
 import os
 import pathlib
+import re
 import secrets
 from collections.abc import Callable
 from typing import BinaryIO
+
+
+def temporary_of(name: str) -> str | None:
+    """The file a temporary file of ``write_whole`` was for (``.NAME.<pid>-<hex>.tmp``: one left by a
+    process killed mid-write).
+
+    Args:
+        name: a file name.
+
+    Returns:
+        ``NAME``, or ``None`` where ``name`` is not such a temporary file.
+    """
+    m = _TEMPORARY.match(name)
+    return None if m is None else m["name"]
+
+
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.\d+-[0-9a-f]{8}\.tmp$")
 
 
 def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, durable: bool = False) -> None:
     """Write ``path`` through a new temporary file beside it, renamed into place once written.
 
     The temporary file has a name of its own (made new: no existing file is written over). A write
-    that fails (a full disk) removes it and raises, leaving what ``path`` held.
+    that fails (a full disk) removes it and raises, leaving what ``path`` held; an ``OSError`` names
+    ``path`` (its ``filename``).
 
     Args:
         path: the file to write.
@@ -25,6 +44,10 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
             if durable:
                 f.flush()
                 os.fsync(f.fileno())
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        e.filename, e.filename2 = str(path), None  # the file the caller asked for, not the temporary one
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

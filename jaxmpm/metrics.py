@@ -88,13 +88,14 @@ def exact_holds(scene: AbstractScene, t: Float[ArrayLike, ""]) -> bool:
 
     Returns:
         ``True`` where the scene has no ``t_valid``, ``t`` is traced, or ``t <= t_valid``; ``False``
-        past it (and for a scene with no exact solution at all).
+        past it (and for a scene with no exact solution at all: neither an exact motion, ``exact``,
+        nor an exact Euler solution, ``solution``).
 
     Raises:
         ValueError: ``scene`` is not a scene.
     """
     _check_scene(scene)
-    if scene.exact is None:
+    if scene.exact is None and not hasattr(scene, "solution"):
         return False
     if getattr(type(scene), "t_valid", None) is None or not is_concrete(t) or np.ndim(t) != 0:
         return True
@@ -614,8 +615,9 @@ def euler_errors(
         allow_broken: measure the state of a run that broke down too (as for ``errors``).
 
     Returns:
-        ``dict(rho_L1, u_L1, p_L1, e_L1)``, or ``None`` for a scene without an exact Euler solution or a
-        run without an energy equation.
+        ``dict(rho_L1, u_L1, p_L1, e_L1)``, or ``None`` for a scene without an exact Euler solution, a
+        run without an energy equation, or a state past the time the exact solution holds (the
+        scene's ``t_valid``, ``exact_holds``: a shock tube's waves reach its ends).
 
     Raises:
         ValueError: ``scene`` is not a scene, ``state`` is not one run's ``State`` (a ``Solution``, an
@@ -628,6 +630,8 @@ def euler_errors(
     _check_body(body)
     _check_particles(state, body)
     if not hasattr(scene, "solution") or state.e is None or state.x.shape[1] != 1:
+        return None
+    if not exact_holds(scene, state.t):
         return None
     ex = scene.solution(state.x[:, 0], state.t)
     V = body.V0 * state.F[:, 0, 0]

@@ -94,7 +94,8 @@ def _check_panels(name: str, value, shape: str) -> None:
 
 
 def _save(fig, target: pathlib.Path, fmt: str, dpi: int) -> None:
-    """Write ``fig`` to ``target`` whole (``write_whole``: a temporary file renamed into place)."""
+    """Write ``fig`` to ``target`` whole (``write_whole``: a temporary file renamed into place); an
+    ``OSError`` (a full disk) leaves what ``target`` held and names it (``filename``)."""
     write_whole(target, lambda f: fig.savefig(f, dpi=dpi, format=fmt))
 
 
@@ -126,6 +127,8 @@ def profile_grid(
             or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
         FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
         FileNotFoundError: the folder of ``path`` does not exist.
+        OSError: the figure cannot be written (a full disk): the file keeps what it held, and the
+            error names it (``filename``).
     """
     _check_panels("panels", panels, "{(row_label, col_label): [(label, X, y, style), ...]}")
     target, fmt = _target(path, overwrite)
@@ -176,6 +179,8 @@ def time_series(
             or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
         FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
         FileNotFoundError: the folder of ``path`` does not exist.
+        OSError: the figure cannot be written (a full disk): the file keeps what it held, and the
+            error names it (``filename``).
     """
     _check_panels("series", series, "{panel: [(label, t, y), ...]}")
     target, fmt = _target(path, overwrite)

@@ -188,6 +188,25 @@ def test_past_t_valid_there_is_no_exact_solution_to_measure_against(vacuum):
     assert not metrics.exact_holds(jm.GasSlab(), 0.0)
 
 
+@pytest.mark.slow
+def test_a_shock_tubes_euler_errors_hold_up_to_t_valid():
+    """The shock tube's exact solution (``solution``, of the Euler equations) holds until a wave
+    reaches an end of the tube: euler_errors are measured up to t_valid and None past it."""
+    scene = jm.ShockTube(cells=20)
+    model = jm.Model(scene, jm.CPDI(), jm.FLIP())
+    setup = jm.setup(model)
+    state, body = jm.initial_state(model, setup), setup.body
+    t_valid = float(scene.t_valid)
+    assert metrics.exact_holds(scene, t_valid) and not metrics.exact_holds(scene, 1.01 * t_valid)
+    at = eqx.tree_at(lambda s: s.t, state, jnp.asarray(t_valid))
+    err = metrics.euler_errors(scene, at, body)
+    assert sorted(err) == ["e_L1", "p_L1", "rho_L1", "u_L1"] and all(
+        np.isfinite(float(v)) for v in err.values()
+    )
+    late = eqx.tree_at(lambda s: s.t, state, jnp.asarray(1.01 * t_valid))
+    assert metrics.euler_errors(scene, late, body) is None
+
+
 # the smoothness measures' settings -----------------------------------------------------------------
 
 

@@ -1,9 +1,12 @@
 """``jaxmpm study NAME``: run one of the studies in ``jaxmpm.studies`` and write its figures and tables."""
 
 import importlib
+import pathlib
 
 import jax
 
+from .._files import write_whole
+from ..studies._output import Files
 from ._common import UsageError, writable_folder
 
 STUDIES = {
@@ -29,7 +32,8 @@ WITHOUT_FIGURES = ("convergence",)
 
 MARK = ".jaxmpm-study"
 """The file in a study's ``--out`` folder that names the study which writes there. Running that study
-again replaces its own files; any other file in the folder is kept unless ``--overwrite``."""
+again replaces its own files (those its module's ``OUTPUTS`` names); a folder that holds any other
+file is refused unless ``--overwrite``."""
 
 
 def add_parser(subparsers) -> None:
@@ -71,9 +75,11 @@ def command(args) -> int:
         The exit status, 0.
 
     Raises:
-        UsageError: ``--out`` cannot be written, or holds files that this study did not write (unless
-            ``--overwrite``); or the study draws figures and matplotlib is missing. All are found
-            before the study starts.
+        UsageError: ``--out`` cannot be written, or holds files that this study does not write
+            (unless ``--overwrite``); or the study draws figures and matplotlib is missing. All are
+            found before the study starts.
+        OSError: a file of the study cannot be written (a full disk): each is written whole, so the
+            folder keeps, for each file, the previous run's version or the new one.
     """
     if args.name not in WITHOUT_FIGURES:
         try:
@@ -83,28 +89,65 @@ def command(args) -> int:
                 f"study {args.name} draws figures with matplotlib, which is not installed: "
                 "pip install 'jaxmpm[figures]'"
             ) from None
-    _claim(args.out, args.name, args.overwrite)
     study = importlib.import_module(f"jaxmpm.studies.{STUDIES[args.name]}")
+    _claim(args.out, args.name, study.OUTPUTS, args.overwrite)
     options = dict(release=jax.clear_caches) if args.name in RELEASING else {}
     study.main(out=args.out, small=args.small, **options)
     return 0
 
 
-def _claim(folder, name: str, overwrite: bool) -> None:
+def _claim(folder, name: str, outputs, overwrite: bool) -> None:
     """Make ``folder`` the output folder of study ``name`` (``MARK``), once it is known that no file
-    there belongs to something else: the folder is new or empty, or was written by this study, or
-    ``overwrite`` is given."""
+    there belongs to something else: the folder is new or empty, or marked as this study's and holding
+    only files the study writes (``outputs``, its module's ``OUTPUTS``), or ``overwrite`` is given.
+
+    Temporary files left by a run of this study killed while it wrote (``Files.leftover``: of its files
+    or of ``MARK``) are removed.
+    """
     path = writable_folder(folder, "--out")
     mark = path / MARK
-    owner = mark.read_text().strip() if mark.is_file() else None
-    held = sorted(p.name for p in path.iterdir() if p.name != MARK)
-    if held and owner != name and not overwrite:
-        whose = f"`jaxmpm study {owner}` wrote" if owner else f"`jaxmpm study {name}` did not write"
+    owner = _owner(mark)
+    try:
+        names = sorted(p.name for p in path.iterdir() if p.name != MARK)
+    except OSError as e:
+        raise UsageError(f"--out {folder}: cannot list the folder ({e.strerror or e})") from None
+    if owner == name:
+        for leftover in [n for n in names if outputs.leftover(n) or _MARK_FILE.leftover(n)]:
+            _remove(path / leftover, folder)
+            names.remove(leftover)
+        held = [n for n in names if n not in outputs]
+    else:
+        held = names
+    if held and not overwrite:
+        other = owner is not None and owner != name
+        whose = f"`jaxmpm study {owner}` wrote" if other else f"`jaxmpm study {name}` did not write"
+        listed = held[0] if len(held) == 1 else f"{held[0]} and {len(held) - 1} more"
         raise UsageError(
-            f"--out {folder} already holds files that {whose} ({held[0]}{', ...' if len(held) > 1 else ''}); "
-            "choose another folder, or pass --overwrite to write over them"
+            f"--out {folder} already holds files that {whose} ({listed}); choose another folder, or pass "
+            "--overwrite to write there anyway (a file of the same name as one of the study's is replaced)"
         )
     try:
-        mark.write_text(name + "\n")
+        write_whole(mark, lambda f: f.write((name + "\n").encode()))
     except OSError as e:
         raise UsageError(f"--out {folder}: cannot write there ({e.strerror or e})") from None
+
+
+_MARK_FILE = Files(MARK)
+
+
+def _owner(mark: pathlib.Path) -> str | None:
+    """The study ``mark`` names, or ``None`` where there is no mark or it cannot be read as one."""
+    if not mark.is_file():
+        return None
+    try:
+        return mark.read_text(encoding="utf-8").strip() or None
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _remove(path: pathlib.Path, folder) -> None:
+    """Remove ``path``, a temporary file of the study's own."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError as e:
+        raise UsageError(f"--out {folder}: cannot remove {path.name} there ({e.strerror or e})") from None

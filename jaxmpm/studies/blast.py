@@ -42,6 +42,7 @@ import jaxmpm as jm
 from jaxmpm import metrics
 from jaxmpm._json import dumps
 
+from ._output import Files
 from ._runtime import machine, require_float64
 
 CFL = 0.3
@@ -100,6 +101,8 @@ SMALL = dict(
     refinement=(4, 8),
     slab=dict(ratios=(10.0,), cells=(4, 8)),
 )
+OUTPUTS = Files("table.md", "blast.json", "radial_velocity.png", "domains.png")
+"""The files the study writes."""
 MEASURES = ("v_r_L1", "rho_L1", "ring_radius_error", "spread_max", "rotation_max", "folded")
 """The numbers of a row, all measured at the run's final state (its last good one after a breakdown)."""
 
@@ -749,8 +752,7 @@ def _slab_markdown(result: dict) -> list[str]:
 
 def _save(fig, path: pathlib.Path) -> pathlib.Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    return path
+    return OUTPUTS.figure(fig, path, dpi=130)
 
 
 def _panel_title(r: dict) -> str:
@@ -839,6 +841,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("blast")
     t0 = time.perf_counter()
@@ -874,12 +877,12 @@ def main(out: str, small: bool = False) -> dict:
     )
     result["wall_s"] = time.perf_counter() - t0
     text = _markdown(result)
-    (outdir / "table.md").write_text(text)
+    OUTPUTS.text(outdir / "table.md", text)
     saved = {k: v for k, v in result.items() if k != "figure_rows"}
     saved["rows"] = _jsonable(rows)
     for key in ("refinement", "refinement_tracked"):
         saved[key] = dict(result[key], rows=_jsonable(result[key]["rows"]))
-    (outdir / "blast.json").write_text(dumps(saved, indent=1, default=str))
+    OUTPUTS.text(outdir / "blast.json", dumps(saved, indent=1, default=str))
     paths = _figures(result, outdir)
     print(text)
     print("wrote " + ", ".join(str(p) for p in [outdir / "table.md", outdir / "blast.json", *paths]))

@@ -14,7 +14,6 @@ with its step, particle and quantity, and left out of the fit.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import pathlib
@@ -27,7 +26,20 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 
 from ._methods import METHODS
+from ._output import Files
 from ._runtime import require_float64
+
+OUTPUTS = Files(
+    "orders.md",
+    "orders.csv",
+    "runs.csv",
+    "orders.json",
+    "shocks.md",
+    "shocks.csv",
+    "shock_runs.csv",
+    "shocks.json",
+)
+"""The files the study writes."""
 
 TRANSFERS = {name.upper(): make for name, make in jm.TRANSFERS.items()}
 """Every transfer of ``jaxmpm.TRANSFERS`` by its label in the tables (``FLIP``, ``PIC``, ``APIC``)."""
@@ -584,6 +596,7 @@ def main(
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("convergence")
     outdir = pathlib.Path(out)
@@ -601,11 +614,8 @@ def main(
 
 
 def _write_csv(path: pathlib.Path, table: list[dict]) -> None:
-    """Write rows to a CSV file, with every key any row has as a column (in first-seen order)."""
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in table for k in r)))
-        w.writeheader()
-        w.writerows(table)
+    """Write rows to a CSV file, whole, with every key any row has as a column (in first-seen order)."""
+    OUTPUTS.csv(path, table, dict.fromkeys(k for r in table for k in r))
 
 
 def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
@@ -661,10 +671,10 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
 
 def _write_shocks(outdir, text, rows, order_rows, drift) -> dict:
     """Write ``shocks.md``, ``shock_runs.csv``, ``shocks.csv`` and ``shocks.json``; print the tables."""
-    (outdir / "shocks.md").write_text(text)
+    OUTPUTS.text(outdir / "shocks.md", text)
     _write_csv(outdir / "shock_runs.csv", rows)
     _write_csv(outdir / "shocks.csv", order_rows)
-    (outdir / "shocks.json").write_text(dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1))
+    OUTPUTS.text(outdir / "shocks.json", dumps(dict(runs=rows, orders=order_rows, energy=drift), indent=1))
     print(text)
     return dict(shock_runs=rows, shock_orders=order_rows, energy_drift=drift)
 
@@ -686,9 +696,9 @@ def _ladder(outdir, all_cases, methods, transfers, release) -> dict:
         "USL, no artificial cells unless stated, float64, dt = CFL h / max(c + |v|) every step.\n\n"
     )
     text = head + markdown(order_rows, all_cases)
-    (outdir / "orders.md").write_text(text)
+    OUTPUTS.text(outdir / "orders.md", text)
     _write_csv(outdir / "runs.csv", rows)
     _write_csv(outdir / "orders.csv", order_rows)
-    (outdir / "orders.json").write_text(dumps(dict(runs=rows, orders=order_rows), indent=1))
+    OUTPUTS.text(outdir / "orders.json", dumps(dict(runs=rows, orders=order_rows), indent=1))
     print(text)
     return dict(runs=rows, orders=order_rows)

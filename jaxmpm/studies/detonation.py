@@ -22,7 +22,6 @@ used. ``jaxmpm study detonation --out DIR`` writes ``detonation.md``, ``detonati
 
 from __future__ import annotations
 
-import csv
 import math
 import pathlib
 import time
@@ -36,7 +35,18 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 from jaxmpm.explosives import BURNS
 
+from ._output import Files
 from ._runtime import machine, number, require_float64, run_status, status_cell
+
+OUTPUTS = Files(
+    "detonation.md",
+    "detonation.json",
+    "detonation_runs.csv",
+    "F_by_interpolator.png",
+    "convergence.png",
+    "peak_pressure.png",
+)
+"""The files the study writes."""
 
 CFL = 0.3
 """The Courant number of every run."""
@@ -779,8 +789,7 @@ def _artificial_cells_agree(rows: list[dict]) -> int | bool | None:
 
 def _save(fig, path: pathlib.Path) -> pathlib.Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    return path
+    return OUTPUTS.figure(fig, path, dpi=130)
 
 
 def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
@@ -905,13 +914,12 @@ def _csv(result: dict, path: pathlib.Path) -> None:
     entries = [("by_interpolator", r) for r in result["by_interpolator"]]
     entries += [("convergence", r) for r in result["convergence"]["rows"]]
     entries += [("peak_pressure", r) for r in result["peak_pressure"]]
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
-        w.writeheader()
-        for table, r in entries:
-            line = {k: r.get(k) for k in CSV_FIELDS}
-            line.update(table=table, explosive=r.get("explosive", "gamma-law"), burn=r.get("burn", "time"))
-            w.writerow({k: "" if v is None else v for k, v in line.items()})
+    lines = []
+    for table, r in entries:
+        line = {k: r.get(k) for k in CSV_FIELDS}
+        line.update(table=table, explosive=r.get("explosive", "gamma-law"), burn=r.get("burn", "time"))
+        lines.append(line)
+    OUTPUTS.csv(path, lines, CSV_FIELDS)
 
 
 def main(out: str, small: bool = False) -> dict:
@@ -931,6 +939,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("detonation")
     t0 = time.perf_counter()
@@ -956,8 +965,8 @@ def main(out: str, small: bool = False) -> dict:
     result["peak_orders"] = peak_orders(result["peak_pressure"])
     result["wall_s"] = time.perf_counter() - t0
     text = _markdown(result)
-    (outdir / "detonation.md").write_text(text)
-    (outdir / "detonation.json").write_text(dumps(result, indent=1, default=str))
+    OUTPUTS.text(outdir / "detonation.md", text)
+    OUTPUTS.text(outdir / "detonation.json", dumps(result, indent=1, default=str))
     _csv(result, outdir / "detonation_runs.csv")
     paths = _figures(result, outdir)
     print(text)

@@ -29,6 +29,7 @@ import numpy as np
 import jaxmpm as jm
 from jaxmpm._json import dumps
 
+from ._output import Files
 from ._runtime import machine, number, require_float64, run_status, status_cell
 
 CFL = 0.3
@@ -37,6 +38,8 @@ C_SHEAR = 0.3
 """The shear viscosity's coefficient of the remedied runs (``ArtificialViscosity(c_shear=...)``)."""
 FRAMES = 60
 """About how many frames of the ring's velocity each run keeps."""
+OUTPUTS = Files("gurney.md", "gurney.json", "ring_velocity.png", "ring_particles.png")
+"""The files the study writes."""
 FULL = dict(cells=(20, 40, 80), all_at=40, t_end=6e-5, times=(2e-5, 4e-5, 6e-5))
 SMALL = dict(cells=(6,), all_at=6, t_end=7e-6, times=(5e-6, 7e-6))
 
@@ -292,26 +295,35 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     ax.set_ylabel("ring's radial velocity (m/s)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    paths.append(outdir / "ring_velocity.png")
-    fig.savefig(paths[-1], dpi=130)
+    paths.append(OUTPUTS.figure(fig, outdir / "ring_velocity.png", dpi=130))
 
-    finished = [r for r in result["interpolators"] if r["x_end"] is not None]
-    if finished:
-        fig = figure(figsize=(3.0 * len(finished), 3.2))
-        axes = np.atleast_1d(fig.subplots(1, len(finished), sharex=True, sharey=True))
-        for ax, r in zip(axes, finished):
-            x = 100.0 * np.asarray(r["x_end"])
-            reg = np.asarray(r["region"])
-            ax.scatter(x[reg == 0, 0], x[reg == 0, 1], s=0.3, color="tab:orange", lw=0)
-            ax.scatter(x[reg == 1, 0], x[reg == 1, 1], s=0.3, color="tab:gray", lw=0)
-            ax.set_aspect("equal")
-            title = r["interpolator"] + ("" if r["remedied"] else ", FLIP")
-            ax.set_title(title, fontsize=9)
-            ax.set_xlabel("x (cm)")
-        axes[0].set_ylabel("y (cm)")
-        fig.tight_layout()
-        paths.append(outdir / "ring_particles.png")
-        fig.savefig(paths[-1], dpi=130)
+    rows = result["interpolators"]
+    fig = figure(figsize=(3.0 * len(rows), 3.2))
+    axes = np.atleast_1d(fig.subplots(1, len(rows), sharex=True, sharey=True))
+    for ax, r in zip(axes, rows):
+        title = r["interpolator"] + ("" if r["remedied"] else ", FLIP")
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("x (cm)")
+        ax.set_aspect("equal")
+        if r["x_end"] is None:  # broke down: no end state to draw
+            ax.text(
+                0.5,
+                0.5,
+                status_cell(r),
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=7,
+                wrap=True,
+            )
+            continue
+        x = 100.0 * np.asarray(r["x_end"])
+        reg = np.asarray(r["region"])
+        ax.scatter(x[reg == 0, 0], x[reg == 0, 1], s=0.3, color="tab:orange", lw=0)
+        ax.scatter(x[reg == 1, 0], x[reg == 1, 1], s=0.3, color="tab:gray", lw=0)
+    axes[0].set_ylabel("y (cm)")
+    fig.tight_layout()
+    paths.append(OUTPUTS.figure(fig, outdir / "ring_particles.png", dpi=130))
     return paths
 
 
@@ -330,6 +342,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("gurney")
     t0 = time.perf_counter()
@@ -356,8 +369,8 @@ def main(out: str, small: bool = False) -> dict:
         r.pop("region", None)
     result["wall_s"] = time.perf_counter() - t0
     text = _markdown(result)
-    (outdir / "gurney.md").write_text(text)
-    (outdir / "gurney.json").write_text(dumps(result, indent=1, default=str))
+    OUTPUTS.text(outdir / "gurney.md", text)
+    OUTPUTS.text(outdir / "gurney.json", dumps(result, indent=1, default=str))
     print(text)
     print("wrote " + ", ".join(str(p) for p in [outdir / "gurney.md", outdir / "gurney.json", *paths]))
     return result

@@ -15,9 +15,14 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 from jaxmpm.particles import parallelogram_corners
 
+from ._output import Files
 from ._runtime import machine, number, require_float64
 
 BETA, DT = 200.0, 1e-5
+OUTPUTS = Files(
+    "multid.md", "multid.json", "blast_domains.png", "blast_gap.png", "axis_aligned_convergence.png"
+)
+"""The files the study writes."""
 
 
 def first_steps(dims=(2, 3)) -> list[dict]:
@@ -115,7 +120,9 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
 
     Returns:
         Per interpolator: times, largest corner gaps (own domains and the parallelograms from x, F),
-        the domains mid-run and at the end, the failure, energies and the parameters.
+        the domains mid-run and at the end, the failure, energies and the parameters. After a
+        breakdown the times and gaps stop at the last frame saved before it, ``corners`` are that
+        frame's domains (for the figure, titled so), and the mass and energies are ``None``.
     """
     out = {}
     for name in ("cpdi", "mpq"):
@@ -132,28 +139,33 @@ def blast(steps: int, every: int, cells: int = 8) -> dict:
             throw=False,
         )
         body = sol.body
+        fail = sol.failure()
+        ts = np.asarray(sol.ts)
+        # the saves of steps 0, every, 2 every, ...; after a breakdown those past the last good
+        # step repeat its state: left out
+        frames = len(ts) if fail is None else min(len(ts), int(sol.state.step) // every + 1)
         gaps, implied, mid = [], [], None
-        for k in range(len(sol.ts)):
+        for k in range(frames):
             parallelograms = parallelogram_corners(body.r0, sol.history["x"][k], sol.history["F"][k])
             own = body.particle_corners(sol.history["corners"][k]) if name == "mpq" else parallelograms
-            if k == len(sol.ts) // 2:
+            if k == frames // 2:
                 mid = dict(t=float(sol.ts[k]), corners=np.asarray(own).tolist())
             gaps.append(float(np.max(jm.corner_gap(own, body))))
+            last = own
             implied.append(float(np.max(jm.corner_gap(parallelograms, body))))
-        # a broken run's last good state, reported beside its failure (``steps_taken``, ``failure``)
-        d = jm.diagnostics(scene, sol.state, body, allow_broken=True)
-        fail = sol.failure()
+        d = jm.diagnostics(scene, sol.state, body) if fail is None else {}
         out[name] = dict(
-            t=[float(t) for t in sol.ts],
+            t=[float(t) for t in ts[:frames]],
             gap_own=gaps,
             gap_implied=implied,
-            corners=np.asarray(jm.domain_corners(sol.state, body, allow_broken=True)).tolist(),
+            # a broken run's last frame before the breakdown, drawn as such (``_figures``)
+            corners=np.asarray(jm.domain_corners(sol.state, body) if fail is None else last).tolist(),
             mid=mid,
             steps_taken=int(sol.state.step),
             failure=fail,
-            mass=float(d["mass"]),
-            energy=float(d["energy"]),
-            energy_kinetic=float(d["energy_kinetic"]),
+            mass=float(d["mass"]) if d else None,
+            energy=float(d["energy"]) if d else None,
+            energy_kinetic=float(d["energy_kinetic"]) if d else None,
             dt=dt,
             params=scene.parameter_values(),
         )
@@ -168,14 +180,16 @@ def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
         steps: steps.
 
     Returns:
-        One row per interpolator: times, particle-steps per second and the max relative F error.
+        One row per interpolator: times, particle-steps per second, the failure (``None``: it ran
+        through) and the max relative F error (``None`` after a breakdown).
     """
     rows = []
     for name in ("spq", "cpdi", "mpq"):
         scene = jm.GasExpansion(dim=2, cells=cells, h=1.0 / cells, pad=4)
         sol, compile_s, run_s = jm.simulate_timed(
-            scene, jm.INTERPOLATORS[name](), dt=1e-6, steps=steps, artificial_cells=1
+            scene, jm.INTERPOLATORS[name](), dt=1e-6, steps=steps, artificial_cells=1, throw=False
         )
+        fail = sol.failure()
         rows.append(
             dict(
                 interpolator=name,
@@ -184,7 +198,8 @@ def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
                 compile_s=compile_s,
                 run_s=run_s,
                 mparticle_steps_per_s=sol.body.n * steps / run_s / 1e6,
-                F_max_rel=float(jm.errors(scene, sol.state, sol.body)["F_max_rel"]),
+                failure=None if fail is None else f"{fail['quantities'][0]} at step {fail['step']}",
+                F_max_rel=float(jm.errors(scene, sol.state, sol.body)["F_max_rel"]) if fail is None else None,
             )
         )
     return rows
@@ -192,8 +207,7 @@ def large_2d(cells: int = 158, steps: int = 20) -> list[dict]:
 
 def _save(fig, path: pathlib.Path) -> pathlib.Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    return path
+    return OUTPUTS.figure(fig, path, dpi=130)
 
 
 def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
@@ -211,6 +225,11 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
             r = b[name]
             k = len(r["t"]) // 2 if when == "mid" else len(r["t"]) - 1
             corners = r["mid"]["corners"] if when == "mid" else r["corners"]
+            last = (
+                ""
+                if when == "mid" or r["failure"] is None
+                else f"\nthe last frame before it broke down at step {r['failure']['step']}"
+            )
             c = np.asarray(corners)[:, order, :]
             ax.add_collection(
                 PolyCollection(c, facecolors="tab:blue", edgecolors="k", linewidths=0.3, alpha=0.35)
@@ -218,7 +237,8 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
             ax.autoscale()
             ax.set_aspect("equal")
             ax.set_title(
-                f"{name.upper()}, t = {r['t'][k] * 1e3:.2f} ms: largest corner gap {r['gap_own'][k]:.3g} r0",
+                f"{name.upper()}, t = {r['t'][k] * 1e3:.2f} ms: largest corner gap "
+                f"{r['gap_own'][k]:.3g} r0{last}",
                 fontsize=9,
             )
         axes[row][0].set_ylabel("y (m)")
@@ -328,14 +348,11 @@ def _markdown(result: dict) -> str:
     ]
     for name in ("cpdi", "mpq"):
         r = b[name]
-        fail = (
-            "none"
-            if r["failure"] is None
-            else f"step {r['failure']['step']}: {r['failure']['quantities'][0]}"
-        )
-        lines.append(
-            f"| {name} | {r['steps_taken']} | {fail} | {r['gap_own'][-1]:.3g} | {r['gap_implied'][-1]:.3g} | "
-            f"{r['energy']:.4g} |"
+        ok = r["failure"] is None
+        fail = "none" if ok else f"step {r['failure']['step']}: {r['failure']['quantities'][0]}"
+        lines.append(  # the end's numbers; none for a run that broke down
+            f"| {name} | {r['steps_taken']} | {fail} | {number(r['gap_own'][-1] if ok else None, '.3g')} "
+            f"| {number(r['gap_implied'][-1] if ok else None, '.3g')} | {number(r['energy'], '.4g')} |"
         )
     lines += [
         "",
@@ -345,9 +362,10 @@ def _markdown(result: dict) -> str:
         "|---|---|---|---|---|---|---|",
     ]
     for r in result["large_2d"]:
+        error = number(r["F_max_rel"]) if r["failure"] is None else f"broken down: {r['failure']}"
         lines.append(
             f"| {r['interpolator']} | {r['particles']} | {r['steps']} | {r['compile_s']:.2f} | "
-            f"{r['run_s']:.2f} | {r['mparticle_steps_per_s']:.2f} | {r['F_max_rel']:.2e} |"
+            f"{r['run_s']:.2f} | {r['mparticle_steps_per_s']:.2f} | {error} |"
         )
     lines += ["", f"Machine: {result['machine']}; total {result['wall_s']:.0f} s.", ""]
     return "\n".join(lines)
@@ -368,6 +386,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("multid")
     t0 = time.perf_counter()
@@ -382,8 +401,8 @@ def main(out: str, small: bool = False) -> dict:
         machine=machine(),
     )
     result["wall_s"] = time.perf_counter() - t0
-    (outdir / "multid.json").write_text(dumps(result, indent=1, default=str))
-    (outdir / "multid.md").write_text(_markdown(result))
+    OUTPUTS.text(outdir / "multid.json", dumps(result, indent=1, default=str))
+    OUTPUTS.text(outdir / "multid.md", _markdown(result))
     paths = _figures(result, outdir)
     print(_markdown(result))
     print("wrote " + ", ".join(str(p) for p in [outdir / "multid.md", outdir / "multid.json", *paths]))

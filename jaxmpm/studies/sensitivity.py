@@ -9,7 +9,6 @@ their status and left out of the curves, never plotted as numbers.
 
 from __future__ import annotations
 
-import csv
 import pathlib
 import time
 
@@ -18,6 +17,7 @@ import numpy as np
 import jaxmpm as jm
 
 from ._methods import METHODS
+from ._output import csv_text, save_figure, write_text
 from ._runtime import require_float64
 
 DT = 1.0e-5
@@ -129,7 +129,7 @@ def figure(results: list[dict], param: str, path, unit: str, ordering: str = "us
         f"Sensitivity of the F error to {param}, {ordering.upper()} (jax.grad, vmapped; dashed: with AC)"
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def main(out: str, small: bool = False, ordering: str = "usl") -> list[dict]:
@@ -147,6 +147,7 @@ def main(out: str, small: bool = False, ordering: str = "usl") -> list[dict]:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("sensitivity")
     outdir = pathlib.Path(out)
@@ -156,22 +157,21 @@ def main(out: str, small: bool = False, ordering: str = "usl") -> list[dict]:
     results = run_all(betas, hs, cells=4 if small else 8, ordering=ordering)
     tag = "" if ordering == "usl" else f"_{ordering}"
     names = (f"sensitivity{tag}.csv", f"sensitivity_beta{tag}.png", f"sensitivity_h{tag}.png")
-    with open(outdir / names[0], "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["method", "artificial_cells", "param", "value", "F_rms_rel", "derivative", "status"])
-        for r in results:
-            for v, e, d, s in zip(r["values"], r["error"], r["derivative"], r["status"]):
-                w.writerow(
-                    [
-                        r["method"],
-                        r["artificial_cells"],
-                        r["param"],
-                        repr(float(v)),
-                        repr(float(e)),
-                        repr(float(d)),
-                        int(s),
-                    ]
-                )
+    lines = [["method", "artificial_cells", "param", "value", "F_rms_rel", "derivative", "status"]]
+    for r in results:
+        for v, e, d, s in zip(r["values"], r["error"], r["derivative"], r["status"]):
+            lines.append(
+                [
+                    r["method"],
+                    r["artificial_cells"],
+                    r["param"],
+                    repr(float(v)),
+                    repr(float(e)),
+                    repr(float(d)),
+                    int(s),
+                ]
+            )
+    write_text(outdir / names[0], csv_text(lines, None))
     figure(results, "beta", outdir / names[1], "s", ordering)
     figure(results, "h", outdir / names[2], "1/m", ordering)
     for r in results:

@@ -8,7 +8,6 @@ domain-separation diagnostic over time, and a markdown table of errors with run 
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import pathlib
 
@@ -19,10 +18,19 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 
 from ._methods import METHODS
+from ._output import Files
 from ._runtime import require_float64
 
 TIMES = (1.0e-4, 1.25e-3)
 DT = 1.0e-5
+OUTPUTS = Files(
+    "table.md",
+    "results.csv",
+    "results.json",
+    *(f"{q}_t{t:g}.png" for t in TIMES for q in ("F", "x", "v")),
+    "separation.png",
+)
+"""The files the study writes."""
 COLUMNS = (
     "method",
     "artificial_cells",
@@ -208,7 +216,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
                 row = "artificial cells" if r.artificial_cells else "no artificial cells"
                 style = dict(color=colours[r.beta], marker="o", ms=3, lw=1)
                 panels.setdefault((row, r.method), []).append((f"beta = {r.beta:g}", X / L, y, style))
-            path = out / f"{qty}_t{t:g}.png"
+            path = OUTPUTS.check(out / f"{qty}_t{t:g}.png")
             plotting.profile_grid(
                 panels,
                 ylabel=ylabel,
@@ -229,7 +237,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
         sep = [float(np.max(np.abs(jm.separation(state_at(r.solution, k), body)))) for k in range(n)]
         panel = "artificial cells" if r.artificial_cells else "no artificial cells"
         series.setdefault(panel, []).append((r.method, ts[:n], np.maximum(sep, 1e-17)))
-    path = out / "separation.png"
+    path = OUTPUTS.check(out / "separation.png")
     plotting.time_series(
         series,
         ylabel="max |x_{p+1} - x_p - (F_{p+1} + F_p) r0| / (2 r0)",
@@ -255,6 +263,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("talk")
     outdir = pathlib.Path(out)
@@ -279,13 +288,10 @@ def main(out: str, small: bool = False) -> dict:
         f"reused for the next (beta is a traced parameter: no recompilation). Both rows of a run "
         f"(t = {TIMES[0]:g} and {TIMES[1]:g}) come from the same run.\n\n"
     )
-    (outdir / "table.md").write_text(header + markdown_table(table))
-    with open(outdir / "results.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(table)
-    (outdir / "results.json").write_text(
-        dumps(dict(params=params, betas=list(betas), dt=DT, rows=table), indent=1)
+    OUTPUTS.text(outdir / "table.md", header + markdown_table(table))
+    OUTPUTS.csv(outdir / "results.csv", table, COLUMNS)
+    OUTPUTS.text(
+        outdir / "results.json", dumps(dict(params=params, betas=list(betas), dt=DT, rows=table), indent=1)
     )
     paths = figures(runs, outdir, betas)
     print(header + markdown_table(table))

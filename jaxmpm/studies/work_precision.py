@@ -8,7 +8,6 @@ per resolution. Error is the RMS displacement error (absolute) at the end time.
 
 from __future__ import annotations
 
-import csv
 import pathlib
 import time
 
@@ -18,7 +17,11 @@ import jaxmpm as jm
 from jaxmpm._json import dumps
 
 from ._methods import METHODS
+from ._output import Files
 from ._runtime import require_float64
+
+OUTPUTS = Files("work_precision.md", "work_precision.csv", "work_precision.json", "work_precision.png")
+"""The files the study writes."""
 
 CFL = 0.5
 COLUMNS = ("method", "cells", "particles", "steps", "x_rms_abs", "F_rms_rel", "wall_s", "compile_s", "status")
@@ -116,7 +119,7 @@ def figure(rows: list[dict], path: pathlib.Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    OUTPUTS.figure(fig, path, dpi=120)
 
 
 def main(out: str, small: bool = False) -> dict:
@@ -133,6 +136,7 @@ def main(out: str, small: bool = False) -> dict:
 
     Raises:
         RuntimeError: float64 is off.
+        OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("work-precision")
     import jax
@@ -149,12 +153,9 @@ def main(out: str, small: bool = False) -> dict:
         "compile time apart.\n\n"
     )
     text = head + markdown(rows)
-    (outdir / "work_precision.md").write_text(text)
-    with open(outdir / "work_precision.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(rows)
-    (outdir / "work_precision.json").write_text(dumps(rows, indent=1))
+    OUTPUTS.text(outdir / "work_precision.md", text)
+    OUTPUTS.csv(outdir / "work_precision.csv", rows, COLUMNS)
+    OUTPUTS.text(outdir / "work_precision.json", dumps(rows, indent=1))
     figure(rows, outdir / "work_precision.png")
     print(text)
     return dict(rows=rows)
