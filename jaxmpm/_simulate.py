@@ -410,6 +410,12 @@ def run_scan(
     if saved is None:
         return Solution(state, s.body, None, None)
     first = save_fields(state0, saveat.fields)
+    if not first:  # at trace time: before anything runs
+        raise ValueError(
+            f"SaveAt(fields={saveat.fields!r}) names no field this run has (C is APIC's, corners "
+            "a CPDI-type interpolator's, e a material's with an energy equation, internal one with "
+            "history variables, x_traction a scene's with tractions): the history would be empty"
+        )
     history = {name: jnp.concatenate([first[name][None], saved[name]]) for name in first}
     if isinstance(dt, ToEnd):
         ts = jnp.concatenate([state0.t[None], saved["t"]])
@@ -648,8 +654,9 @@ def simulate(
 
     Raises:
         ValueError: bad input, before anything is traced: among others a scene class for a scene
-            object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, or a ``checkpoint`` that is
-            not ``True``, ``False`` or an integer >= 1.
+            object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, a ``checkpoint`` that is
+            not ``True``, ``False`` or an integer >= 1, or a ``saveat`` that names no field the run
+            has (``C`` of a FLIP run).
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
     model, dt_arr, n, saveat = prepare(

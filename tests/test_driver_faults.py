@@ -161,6 +161,18 @@ def test_simulate_to_an_end_time_takes_cfl_by_default_or_given():
     assert float(a.state.t) == pytest.approx(3e-5) and np.array_equal(a.state.x, b.state.x)
 
 
+def test_saveat_of_no_field_the_run_has_is_refused():
+    """SaveAt(fields=("C",)) on a FLIP run would keep an empty history: refused, naming the fields."""
+    with pytest.raises(ValueError, match=r"SaveAt\(fields=\('C',\)\) names no field this run has"):
+        jm.simulate(
+            jm.GasExpansion(cells=2), jm.SPQ(), dt=1e-5, steps=2, saveat=jm.SaveAt(every=1, fields=("C",))
+        )
+    sol = jm.simulate(
+        jm.GasExpansion(cells=2), jm.SPQ(), dt=1e-5, steps=2, saveat=jm.SaveAt(every=1, fields=("x", "C"))
+    )
+    assert list(sol.history) == ["x"] and sol.history["x"].shape == (3, 4, 1)
+
+
 def test_saveat_refuses_an_empty_tuple_of_fields():
     with pytest.raises(ValueError, match=r"SaveAt.fields must name at least one field among \('x', 'v'"):
         jm.SaveAt(every=1, fields=())
