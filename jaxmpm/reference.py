@@ -240,7 +240,7 @@ def reference_convergence(scene, ts, cells=(100, 200, 400, 800), **kwargs) -> li
 
     Returns:
         One row per resolution: ``cells``, ``x_free_max_diff`` and (between the first and the last)
-        ``order``.
+        ``order``, ``None`` where two resolutions agree exactly (``ts`` all 0: nothing has moved).
 
     Raises:
         ValueError: ``cells`` is not such a sequence; or as ``gas_slab``.
@@ -302,7 +302,8 @@ def _resolutions(cells) -> list[int]:
 
 def _surface_convergence(cells, surfaces, name: str) -> list[dict]:
     """Rows of ``cells``, ``<name>_max_diff`` against the finest surface trajectory, and the observed
-    order between each three successive resolutions (Richardson)."""
+    order between each three successive resolutions (Richardson; ``None`` where one of the two
+    differences is exactly zero)."""
     finest = surfaces[-1]
     rows = [
         {"cells": n, f"{name}_max_diff": float(jnp.max(jnp.abs(s - finest)))} for n, s in zip(cells, surfaces)
@@ -310,7 +311,9 @@ def _surface_convergence(cells, surfaces, name: str) -> list[dict]:
     for i in range(len(surfaces) - 2):
         d1 = jnp.max(jnp.abs(surfaces[i] - surfaces[i + 1]))
         d2 = jnp.max(jnp.abs(surfaces[i + 1] - surfaces[i + 2]))
-        rows[i + 1]["order"] = float(jnp.log2(d1 / d2))
+        # Where a pair agrees exactly (all times at t = 0, or converged to the last bit) there is no
+        # difference to take an order from: None, not log2(0 / 0).
+        rows[i + 1]["order"] = float(jnp.log2(d1 / d2)) if float(d1) > 0 and float(d2) > 0 else None
     return rows
 
 

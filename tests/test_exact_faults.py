@@ -176,6 +176,12 @@ def test_surface_convergence_takes_two_resolutions_of_any_ratio():
     assert rows[1]["x_free_max_diff"] == 0.0 and rows[0]["x_free_max_diff"] > 0.0
 
 
+def test_surface_convergence_at_t_0_has_no_order_to_measure():
+    """All times at 0: every resolution agrees exactly, and the order is None, not log2(0 / 0)."""
+    rows = reference.reference_convergence(jm.GasSlab(**SLAB), [0.0], cells=(4, 8, 16))
+    assert [r["x_free_max_diff"] for r in rows] == [0.0, 0.0, 0.0] and rows[1]["order"] is None
+
+
 @pytest.mark.parametrize(
     "cells, match",
     [
