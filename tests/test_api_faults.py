@@ -19,6 +19,7 @@ def broken_scene():
     return jm.GasExpansion(beta=-2e5, cells=4)
 
 
+@pytest.mark.slow
 def test_a_derivative_through_a_run_that_breaks_down_raises_the_breakdown():
     """Under jax.grad the status is concrete and the state is not: the error names the step, the
     particle and the quantities, and says the state is traced."""

@@ -28,7 +28,7 @@ NAMES = ("F_L", "v_L", "F_R", "v_R", "P0", "gamma", "rho0")
 
 @pytest.mark.parametrize("xi", [math.nan, np.float32("nan"), jnp.asarray([0.1, jnp.nan])])
 def test_riemann_solution_refuses_a_nan_xi(xi):
-    # was (2.0, 0.0, nan): F and v of the right state, D NaN
+    # not (2.0, 0.0, nan): F and v of the right state with D NaN
     _one_line(lambda: exact.riemann_solution(xi, *STATES), r"^xi must be a real number or \+-inf, not NaN")
 
 
@@ -47,6 +47,7 @@ def test_riemann_solution_takes_infinite_xi_as_the_outer_states():
     assert float(D[1]) == pytest.approx(-0.2 - 0.3, abs=1e-12)  # x(L) moves with v_R = v_L + D
 
 
+@pytest.mark.slow
 def test_riemann_solution_passes_a_traced_xi():
     xi = jnp.linspace(-2.0, 2.0, 9)
     F = jax.vmap(lambda z: exact.riemann_solution(z, *STATES)[0])(xi)
@@ -60,7 +61,7 @@ def test_riemann_solution_passes_a_traced_xi():
 
 @pytest.mark.parametrize("index", range(7))
 def test_riemann_star_refuses_arrays_of_states_by_name(index):
-    # was "TypeError: Gradient only defined for scalar-output functions"
+    # not JAX's "TypeError: Gradient only defined for scalar-output functions"
     args = list(STATES)
     args[index] = jnp.asarray([STATES[index], STATES[index]])
     name = NAMES[index]
@@ -103,7 +104,7 @@ def test_vacuum_forms_still_broadcasts_over_arrays_of_states():
 @pytest.mark.parametrize(
     "X, shown",
     [
-        (jnp.asarray([0.5, 1.5]), r"\[0\.5 1\.5\]"),  # was [0.5, nan]
+        (jnp.asarray([0.5, 1.5]), r"\[0\.5 1\.5\]"),  # not [0.5, nan]
         (-0.1, r"-0\.1"),
         (1.0 + 1e-12, r"1\.000000000001"),
     ],
@@ -130,14 +131,16 @@ SLAB = dict(cells=4, ppc=1, pad=8)
 GAS = dict(P0=1e6, gamma=1.4, p_atm=1e5, rho0=1.0, radius=0.5)
 
 
+@pytest.mark.slow
 def test_gas_slab_names_max_steps_when_the_solve_needs_more():
-    # was diffrax's multi-screen EquinoxRuntimeError
+    # not diffrax's multi-screen EquinoxRuntimeError
     _one_line(
         lambda: reference.gas_slab(jm.GasSlab(**SLAB), [0.0, 1e-3], cells=8, max_steps=1),
         r"^max_steps=1 was too few: the solve to ts\[-1\]=0\.001 needs more steps; raise max_steps$",
     )
 
 
+@pytest.mark.slow
 def test_gas_radial_names_max_steps_when_the_solve_needs_more():
     _one_line(
         lambda: reference.gas_radial(**GAS, dim=2, ts=[0.0, 1e-3], cells=8, max_steps=1),
@@ -170,12 +173,14 @@ def test_surface_convergence_refuses_bad_resolutions_by_name(cells, match):
     _one_line(lambda: reference.radial_convergence([1e-4], cells=cells, **GAS, dim=2), match)
 
 
+@pytest.mark.slow
 def test_surface_convergence_takes_two_resolutions_of_any_ratio():
     rows = reference.reference_convergence(jm.GasSlab(**SLAB), [1e-4], cells=(np.int64(6), 9))
     assert [r["cells"] for r in rows] == [6, 9] and all("order" not in r for r in rows)
     assert rows[1]["x_free_max_diff"] == 0.0 and rows[0]["x_free_max_diff"] > 0.0
 
 
+@pytest.mark.slow
 def test_surface_convergence_at_t_0_has_no_order_to_measure():
     """All times at 0: every resolution agrees exactly, and the order is None, not log2(0 / 0)."""
     rows = reference.reference_convergence(jm.GasSlab(**SLAB), [0.0], cells=(4, 8, 16))
@@ -185,7 +190,7 @@ def test_surface_convergence_at_t_0_has_no_order_to_measure():
 @pytest.mark.parametrize(
     "cells, match",
     [
-        (("a",), r"^cells must hold integers >= 2, got 'a' in \['a'\]$"),  # was "invalid literal for int()"
+        (("a",), r"^cells must hold integers >= 2, got 'a' in \['a'\]$"),  # not "invalid literal for int()"
         ((8, 16.5, 32), r"^cells must hold integers >= 2, got 16\.5"),
         (None, r"^cells must be a sequence of resolutions"),
         ((8, 16), r"^cells must hold at least three resolutions"),

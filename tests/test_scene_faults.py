@@ -168,10 +168,10 @@ def test_a_2d_body_of_regions_at_rest_runs():
 @pytest.mark.parametrize(
     "args, match",
     [
-        ((1.0, -1.0, 1.4, 1.0), r"^P0 must be >= 0, got -1\.0$"),  # was NaN
-        ((-1.0, 1.0, 1.4, 1.0), r"^F must be > 0, got -1\.0$"),  # was a complex number
+        ((1.0, -1.0, 1.4, 1.0), r"^P0 must be >= 0, got -1\.0$"),  # not NaN
+        ((-1.0, 1.0, 1.4, 1.0), r"^F must be > 0, got -1\.0$"),  # not a complex number
         ((1.0, 1.0, 0.5, 1.0), r"^gamma must be > 1"),
-        ((1.0, 1.0, 1.4, 0.0), r"^rho0 must be > 0"),  # was ZeroDivisionError
+        ((1.0, 1.0, 1.4, 0.0), r"^rho0 must be > 0"),  # not ZeroDivisionError
         ((jnp.asarray([1.0, 0.0]), 1.0, 1.4, 1.0), r"^F must be > 0"),
     ],
 )
@@ -190,7 +190,7 @@ STATES = (0.5, 0.0, 1.0, 0.0, 1.0, 1.4, 1.0)  # F_L, v_L, F_R, v_R, P0, gamma, r
 @pytest.mark.parametrize(
     "index, value, match",
     [
-        (4, -1.0, r"^P0 must be > 0, got -1\.0$"),  # was NaN
+        (4, -1.0, r"^P0 must be > 0, got -1\.0$"),  # not NaN
         (4, 0.0, r"^P0 must be > 0, got 0\.0$"),  # no wave curves: NaN
         (5, 0.9, r"^gamma must be > 1"),
         (6, -1.0, r"^rho0 must be > 0"),

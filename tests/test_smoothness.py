@@ -408,6 +408,7 @@ def test_corner_jacobians_check_the_corner_count():
 # a run ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_quarter_blast_is_symmetric_about_the_diagonal():
     """A quarter of the square charge is symmetric under swapping x and y: the mirror particle has
     the same radial velocity, the opposite rotation and vorticity, and the same corner Jacobians
