@@ -295,5 +295,10 @@ def main(out: str, small: bool = False) -> dict:
     )
     paths = figures(runs, outdir, betas)
     print(header + markdown_table(table))
-    print("wrote " + ", ".join(str(p) for p in [outdir / "table.md", outdir / "results.csv", *paths]))
+    print(
+        "wrote "
+        + ", ".join(
+            str(p) for p in [outdir / "table.md", outdir / "results.csv", outdir / "results.json", *paths]
+        )
+    )
     return dict(table=table, figures=paths)
