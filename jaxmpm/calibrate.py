@@ -861,6 +861,9 @@ def _check_thresholds(noise, max_correlation, max_relative_std) -> None:
     check_positive("max_relative_std", max_relative_std)
 
 
+_MOST_PAD = 10**9  # cells of padding: a 1D grid of that many nodes is already ~100 GB of state
+
+
 def _check_data(scene, t_data, x_data, what="x_data"):
     dtype = scene.h.dtype
     check_real("t_data", t_data)
@@ -885,10 +888,15 @@ def _check_data(scene, t_data, x_data, what="x_data"):
     grid_end = float(scene.length) + scene.pad * float(scene.h)
     # a particle's stencil reaches up to 2 cells past its domain (CPDI, GIMP): the grid must hold that
     if x_max > grid_end - 2.0 * float(scene.h):
+        pad = pad_for(scene, 1.25 * x_max)
+        use = (
+            f"use pad >= {pad}"
+            if pad <= _MOST_PAD
+            else f"a grid holding them needs pad = {pad:.3g} cells, beyond any memory: check the data's units"
+        )
         raise ValueError(
             f"{what} reach x = {x_max:.6g}, but the grid ends at x = {grid_end:.6g} (pad = {scene.pad} "
-            f"cells of h = {float(scene.h):.6g}): the model cannot follow the data; use pad >= "
-            f"{pad_for(scene, 1.25 * x_max)}"
+            f"cells of h = {float(scene.h):.6g}): the model cannot follow the data; {use}"
         )
     return t_data, x_data
 

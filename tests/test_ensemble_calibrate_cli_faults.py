@@ -345,3 +345,19 @@ def test_ctrl_c_during_an_ensemble_is_answered_at_once(capsys, monkeypatch):
     assert captured.err.strip().splitlines() == [
         "jaxmpm: interrupted while the ensemble's 3 members ran (one compiled call): no member is reported"
     ]
+
+
+def test_data_beyond_the_grid_name_the_column_and_a_pad_that_exists(capsys, tmp_path):
+    """Data past the grid's end are named as the file's column; a pad no memory could hold is not
+    printed as a 300-digit count but as a hint at the data's units."""
+    far = tmp_path / "far.csv"
+    far.write_text("t,x_free\n0,1\n0.002,9\n")
+    argv = ["calibrate", "gas-slab", "--data", str(far), "--fit", "gamma", "pad=10", "--no-progress"]
+    line = usage(capsys, argv, "--data: x_free reaches x = 9, but the grid ends at x = 1.3125 (pad = 10")
+    assert line.endswith("the model cannot follow the data; use pad >= 332")
+    huge = tmp_path / "huge.csv"
+    huge.write_text("t,x_free\n0,1\n0.002,1e300\n")
+    line = usage(capsys, [*argv[:3], str(huge), *argv[4:]], "--data: x_free reaches x = 1e+300")
+    assert line.endswith(
+        "a grid holding them needs pad = 4e+301 cells, beyond any memory: check the data's units"
+    )

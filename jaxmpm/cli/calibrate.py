@@ -386,8 +386,8 @@ def command(args) -> int:
                 progress=False if args.no_progress else None,
                 **({} if viscosity is None else {"viscosity": viscosity}),
             )
-    except ValueError as e:
-        raise UsageError(str(e)) from None
+    except ValueError as e:  # the data's column by its name in the file, not the library's argument
+        raise UsageError(str(e).replace("x_data reach", f"--data: {column} reaches", 1)) from None
     except jm.calibrate.CalibrationError as e:
         print(f"jaxmpm: {e}", file=sys.stderr)
         return 3
