@@ -1,11 +1,32 @@
 """Files written whole or not at all, and never over a file that is not the one being written."""
 
+import errno
 import os
 import pathlib
 import re
 import secrets
 from collections.abc import Callable
 from typing import BinaryIO
+
+
+def check_folder(path: pathlib.Path) -> None:
+    """Refuse, naming it, a folder of ``path`` that is missing or is a file (a file, or the temporary
+    file ``write_whole`` makes beside it, could not be made there).
+
+    Args:
+        path: the file to write.
+
+    Raises:
+        NotADirectoryError: the folder is a file.
+        FileNotFoundError: there is no such folder.
+    """
+    folder = path.parent
+    if not folder.is_dir():
+        if folder.exists():
+            raise NotADirectoryError(
+                errno.ENOTDIR, f"Not a folder, cannot write {path.name} in it", str(folder)
+            )
+        raise FileNotFoundError(errno.ENOENT, f"No such folder to write {path.name} in", str(folder))
 
 
 def temporary_of(name: str) -> str | None:

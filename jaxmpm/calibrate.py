@@ -80,8 +80,8 @@ from ._checks import (
 from ._simulate import SaveAt, SimulationError, as_devices, failure_message, simulate
 from ._step import check_interpolator
 from ._util import host
-from .ensemble import computed
 from .interpolators import AbstractInterpolator
+from .long_run import computed
 from .scenes import AbstractScene
 from .scenes.gas_slab import free_surface, pad_for
 from .scenes.gurney import AbstractGurney, GurneySlab
@@ -607,7 +607,7 @@ def calibrate(
         CalibrationError: every start broke down, or the best start cannot go on because every
             step toward a lower loss is a run that breaks down.
         KeyboardInterrupt: Ctrl-C during the fit, saying the iteration it stopped in (answered
-            between iterations, and at once under the command line: ``jaxmpm.ensemble.computed``);
+            between iterations, and at once under the command line: ``jaxmpm.long_run.computed``);
             nothing is returned.
     """
     _check_parts(scene, interpolator)

@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import operator
-import signal
-import threading
 from collections.abc import Mapping
 
 import equinox as eqx
@@ -36,7 +34,7 @@ from ._checks import brief, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
 from ._step import check_scene
 from .interpolators import AbstractInterpolator
-from .long_run import InterruptLatch, wait
+from .long_run import computed
 from .scenes import AbstractScene
 from .sensitivity import continuous_parameters, static_parameters
 
@@ -123,49 +121,6 @@ def variable_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str
     """
     static = static_parameters(scene)
     return tuple(n for n in continuous_parameters(scene) if n not in static and n != "dt")
-
-
-def computed(fn, *args):
-    """``fn(*args)`` with every array it returns computed, answering Ctrl-C at once.
-
-    Where the process's SIGINT handler is an ``InterruptLatch`` (the command line installs one) and
-    this is the main thread, the call (tracing, compiling and running) goes to a worker thread while
-    this one waits, so that a Ctrl-C during a long compiled call is answered at once: the call is
-    abandoned, not stopped (the command line then exits without waiting for it). Elsewhere (a library
-    caller, which may hold thread-local JAX settings) the call runs here and ``long_run.wait`` polls
-    its result, which answers Ctrl-C at once where the device computes asynchronously (a GPU) and
-    after the call on a CPU, which computes in the calling thread.
-
-    Args:
-        fn: a function of arrays, usually compiled.
-        *args: its arguments.
-
-    Returns:
-        Its result, computed.
-
-    Raises:
-        KeyboardInterrupt: Ctrl-C while it computed.
-    """
-    latch = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not isinstance(latch, InterruptLatch):
-        return wait(fn(*args))
-    box = {}
-
-    def work():
-        try:
-            box["out"] = jax.block_until_ready(fn(*args))
-        except BaseException as e:  # handed to the waiting thread, which raises it
-            box["error"] = e
-
-    worker = threading.Thread(target=work, name="jaxmpm-compute", daemon=True)
-    worker.start()
-    while worker.is_alive():
-        worker.join(0.05)
-        if latch.pending:  # a Ctrl-C that Python ignored where it landed
-            raise KeyboardInterrupt
-    if "error" in box:
-        raise box["error"]
-    return box["out"]
 
 
 RUN_NAMES = ("dt", "t_end", "cfl")
@@ -287,7 +242,7 @@ def ensemble(
             real numbers, arrays of different lengths, values that are not finite or that the
             parameter does not allow), bad run arguments, or more members than the device's memory
             holds (estimated before anything is allocated).
-        KeyboardInterrupt: Ctrl-C while the members ran (``computed``: at once under the command
+        KeyboardInterrupt: Ctrl-C while the members ran (``long_run.computed``: at once under the command
             line): nothing is returned.
     """
     devices = list(jax.local_devices() if devices is None else as_devices(devices))

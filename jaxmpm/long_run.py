@@ -409,6 +409,49 @@ def wait(tree):
     return tree
 
 
+def computed(fn, *args):
+    """``fn(*args)`` with every array it returns computed, answering Ctrl-C at once.
+
+    Where the process's SIGINT handler is an ``InterruptLatch`` (the command line installs one) and
+    this is the main thread, the call (tracing, compiling and running) goes to a worker thread while
+    this one waits, so that a Ctrl-C during a long compiled call is answered at once: the call is
+    abandoned, not stopped (the command line then exits without waiting for it). Elsewhere (a library
+    caller, which may hold thread-local JAX settings) the call runs here and ``long_run.wait`` polls
+    its result, which answers Ctrl-C at once where the device computes asynchronously (a GPU) and
+    after the call on a CPU, which computes in the calling thread.
+
+    Args:
+        fn: a function of arrays, usually compiled.
+        *args: its arguments.
+
+    Returns:
+        Its result, computed.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C while it computed.
+    """
+    latch = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or not isinstance(latch, InterruptLatch):
+        return wait(fn(*args))
+    box = {}
+
+    def work():
+        try:
+            box["out"] = jax.block_until_ready(fn(*args))
+        except BaseException as e:  # handed to the waiting thread, which raises it
+            box["error"] = e
+
+    worker = threading.Thread(target=work, name="jaxmpm-compute", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.05)
+        if latch.pending:  # a Ctrl-C that Python ignored where it landed
+            raise KeyboardInterrupt
+    if "error" in box:
+        raise box["error"]
+    return box["out"]
+
+
 def _any_process(flag: bool) -> bool:
     """Whether ``flag`` is set on any process (a collective: every process calls it at the same point).
 

@@ -7,13 +7,12 @@ with their last reference.
 
 from __future__ import annotations
 
-import errno
 import os
 import pathlib
 from collections.abc import Mapping
 
 from ._checks import brief, check_bool
-from ._files import write_whole
+from ._files import check_folder, write_whole
 
 
 def figure(**kwargs):
@@ -77,13 +76,7 @@ def _target(path, overwrite) -> tuple[pathlib.Path, str]:  # overwrite: checked 
         raise ValueError(f"path {target} is a folder, not a file: name the file to write")
     if not overwrite and os.path.lexists(target):
         raise FileExistsError(f"{target} already exists: pass overwrite=True to replace it")
-    folder = target.parent
-    if not folder.is_dir():
-        if folder.exists():
-            raise NotADirectoryError(
-                errno.ENOTDIR, f"Not a folder, cannot write {target.name} in it", str(folder)
-            )
-        raise FileNotFoundError(errno.ENOENT, f"No such folder to write {target.name} in", str(folder))
+    check_folder(target)
     return target, fmt
 
 

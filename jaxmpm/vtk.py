@@ -17,7 +17,6 @@ in the x-y plane). The grid file has the grid's nodes along each axis, in VTK's 
 from __future__ import annotations
 
 import contextlib
-import errno
 import os
 import pathlib
 import secrets
@@ -28,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._checks import brief, check_bool, is_real
-from ._files import write_whole
+from ._files import check_folder, write_whole
 from ._util import det
 
 
@@ -157,7 +156,7 @@ def write_particles(
     n = x.shape[0]
     fields = _check_fields({} if fields is None else fields, n, "particles")
     _refuse_existing([path], overwrite)
-    _check_folder(path)
+    check_folder(path)
     x = _pad_vectors(x)
     cells = np.stack([np.ones(n, dtype=np.int64), np.arange(n)], axis=1)
     body = [
@@ -205,7 +204,7 @@ def write_grid(
         raise ValueError(f"grid must be a jm.Grid of 1, 2 or 3 dimensions (scene.grid()), got {brief(grid)}")
     fields = _check_fields(fields, grid.n_nodes, "nodes")
     _refuse_existing([path], overwrite)
-    _check_folder(path)
+    check_folder(path)
     dim = grid.dim
     shape = list(grid.axes) + [1] * (3 - dim)
     origin = [float(o) for o in np.asarray(grid.x_min)] + [0.0] * (3 - dim)
@@ -242,18 +241,6 @@ def _refuse_existing(paths: list[pathlib.Path], overwrite) -> None:  # overwrite
 def _exists(path: pathlib.Path) -> FileExistsError:
     """The refusal of a file already at ``path``."""
     return FileExistsError(f"{path} already exists: pass overwrite=True to replace it")
-
-
-def _check_folder(path: pathlib.Path) -> None:
-    """Refuse, naming it, a folder of ``path`` that is missing or is a file (the temporary file
-    beside ``path`` could not be made there)."""
-    folder = path.parent
-    if not folder.is_dir():
-        if folder.exists():
-            raise NotADirectoryError(
-                errno.ENOTDIR, f"Not a folder, cannot write {path.name} in it", str(folder)
-            )
-        raise FileNotFoundError(errno.ENOENT, f"No such folder to write {path.name} in", str(folder))
 
 
 def _write(path: pathlib.Path, data: bytes) -> None:

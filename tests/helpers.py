@@ -2,6 +2,7 @@
 run over, so a new interpolator or transfer inherits every check; and the check of a usage error."""
 
 import contextlib
+import inspect
 
 import jax
 
@@ -68,3 +69,8 @@ def calibration_case():
         dict(gamma=1.1, P0=3.9e5),
     ]
     return jm.GasSlab(**slab), t, data, starts, dt
+
+
+def raw(fn):
+    """``fn`` without the suite's runtime type checks of its annotations (what a user runs)."""
+    return inspect.unwrap(fn)

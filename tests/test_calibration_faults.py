@@ -2,11 +2,11 @@
 anything is traced, a fit the data pull against the bound of a constant's range kept inside it and
 reported, and an unidentifiable fit's warning saying what is true (never "nan")."""
 
-import inspect
 import warnings
 
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm import calibrate as cal
@@ -54,11 +54,6 @@ def test_gas_slab_reference_takes_a_repeated_time():
 
 
 # -- calibrate, calibrate_each, information, profile, trajectory -----------------------------------------
-
-
-def raw(fn):
-    """``fn`` without the suite's runtime type checks of its annotations (what a user runs)."""
-    return inspect.unwrap(fn)
 
 
 INTERP_STR = (

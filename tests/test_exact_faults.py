@@ -34,7 +34,7 @@ def test_riemann_solution_refuses_a_nan_xi(xi):
 
 @pytest.mark.parametrize("xi", ["a", None, 1j])
 def test_riemann_solution_refuses_an_xi_that_is_not_a_number(xi):
-    # "a" was a JAX TypeError about clip
+    # "a": refused by name, not a JAX TypeError about clip
     _one_line(lambda: exact.riemann_solution(xi, *STATES), r"^xi must be a real number, got ")
 
 
@@ -154,7 +154,7 @@ def test_gas_radial_names_max_steps_when_the_solve_needs_more():
 @pytest.mark.parametrize(
     "cells, match",
     [
-        # () was an IndexError, (4, 4, 4) an order of NaN
+        # () and (4, 4, 4): refused by name, not an IndexError or an order of NaN
         ((), r"^cells must hold at least two resolutions, to compare against the finest, got \[\]$"),
         ((8,), r"^cells must hold at least two resolutions"),
         ((4, 4, 4), r"^cells must be strictly increasing \(coarse to fine\), got \[4, 4, 4\]$"),

@@ -1,7 +1,6 @@
 """The metrics and the VTK writers under faults: the state of a run that broke down is measured only
 when asked, a scene that is not one is named, and files already there are replaced only when asked."""
 
-import inspect
 import json
 
 import equinox as eqx
@@ -9,16 +8,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm.cli import main
 
 DT = 1e-5
-
-
-def raw(fn):
-    """``fn`` without the suite's runtime type checks of its annotations (what a user runs)."""
-    return inspect.unwrap(fn)
 
 
 @pytest.fixture(scope="module")

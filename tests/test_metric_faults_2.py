@@ -2,13 +2,12 @@
 time past the one the exact solution holds until are refused; the ranges of the smoothness measures'
 settings and the common mistakes in their arguments are named."""
 
-import inspect
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm import metrics
@@ -16,11 +15,6 @@ from jaxmpm.ensemble import Ensemble
 from jaxmpm.particles import parallelogram_corners
 
 C0 = np.zeros(1)  # the centre of the radial measures, in 1D
-
-
-def raw(fn):
-    """``fn`` without the suite's runtime type checks of its annotations (what a user runs)."""
-    return inspect.unwrap(fn)
 
 
 @pytest.fixture(scope="module")
