@@ -28,7 +28,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_finite, check_greater, check_less, check_positive, check_real, is_concrete
-from ._util import as_float
+from ._util import as_float, power
 from .materials import AbstractEOS, AbstractStatelessEOS
 
 
@@ -134,7 +134,8 @@ class JWLIsentrope(AbstractStatelessEOS):
     def pressure_terms(self, rho, z):
         del z
         V = self.rho0 / rho
-        p = self.A * jnp.exp(-self.R1 * V) + self.B * jnp.exp(-self.R2 * V) + self.C * V ** (-(self.w + 1.0))
+        p = self.A * jnp.exp(-self.R1 * V) + self.B * jnp.exp(-self.R2 * V)
+        p = p + self.C * power(V, -(self.w + 1.0))
         return p, jnp.zeros_like(rho)
 
 
@@ -189,7 +190,7 @@ class GammaLawIsentrope(AbstractStatelessEOS):
         del z
         g1 = self.gamma + 1.0
         V = self.rho0 / rho
-        p = self.rho0 * self.D**2 / g1 * (V * g1 / self.gamma) ** (-self.gamma)
+        p = self.rho0 * self.D**2 / g1 * power(V * g1 / self.gamma, -self.gamma)
         return p, jnp.zeros_like(rho)
 
 
@@ -236,7 +237,7 @@ class Murnaghan(AbstractStatelessEOS):
     def pressure_terms(self, rho, z):
         del z
         J = self.rho0 / rho
-        return (J ** (-self.n) - 1.0) / (self.n * self.K), jnp.zeros_like(rho)
+        return (power(J, -self.n) - 1.0) / (self.n * self.K), jnp.zeros_like(rho)
 
 
 # The CJ search: D^2 on the products' Hugoniot, scanned on a grid of J, then a bracketed Newton step

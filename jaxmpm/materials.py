@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_greater, check_less, check_nonnegative, check_positive
-from ._util import as_float, check_real_fields, contract, det
+from ._util import as_float, check_real_fields, contract, det, power
 
 
 class AbstractMaterial(eqx.Module):
@@ -133,7 +133,7 @@ class AdiabaticGas(AbstractMaterial):
         Returns:
             ``P`` at each ``J``.
         """
-        return self.P0 * J ** (-self.gamma) - self.p_atm
+        return self.P0 * power(J, -self.gamma) - self.p_atm
 
     def stress(self, F):
         J = det(F)
@@ -141,11 +141,11 @@ class AdiabaticGas(AbstractMaterial):
 
     def energy_density(self, F):
         J = det(F)
-        return self.P0 * (J ** (1.0 - self.gamma) - 1.0) / (self.gamma - 1.0) + self.p_atm * (J - 1.0)
+        return self.P0 * (power(J, 1.0 - self.gamma) - 1.0) / (self.gamma - 1.0) + self.p_atm * (J - 1.0)
 
     def sound_speed(self, F, rho0):
         J = det(F)
-        return jnp.sqrt(self.gamma * self.P0 * J ** (1.0 - self.gamma) / rho0)
+        return jnp.sqrt(self.gamma * self.P0 * power(J, 1.0 - self.gamma) / rho0)
 
     def sound_speed_from_stress(self, F, sigma, rho0):
         # P0 J^-gamma = p_atm - sigma_00, so c^2 = gamma (p_atm - sigma_00) J / rho0: no power.

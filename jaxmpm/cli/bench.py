@@ -43,7 +43,7 @@ def add_parser(subparsers) -> None:
         help="particle counts of the 3D runs (8 k^3: k^3 cells of 2 x 2 x 2), comma-separated; "
         "'' (the default) for none",
     )
-    p.add_argument("--dtypes", default="f32,f64", help="f32, f64 or both (each in its own process)")
+    p.add_argument("--dtypes", default="f32,f64", help="f32, f64 or f32,f64, comma-separated (each in its own process)")
     p.add_argument(
         "--codes",
         help="among numpy, jax (plain JAX), taichi, warp (when installed: pip install jaxmpm[bench]), "
