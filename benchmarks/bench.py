@@ -66,8 +66,21 @@ PASSES = 4  # passes over the particle state (x, v, F) a step must make; see ``b
 FILES = ("bench.csv", "bench.json", "bench.md")
 """What ``write`` writes into its folder."""
 
-ROW_FIELDS = ("code", "dtype", "particles", "steps", "compile_s", "run_s", "Mpsps", "F_mean", "status", "dim")
-"""The keys of a row of ``rows``, in order: the columns of ``bench.csv``."""
+ROW_FIELDS = (
+    "code",
+    "dtype",
+    "particles",
+    "steps",
+    "compile_s",
+    "run_s",
+    "Mpsps",
+    "F_mean",
+    "status",
+    "dim",
+    "rounds",
+)
+"""The keys of a row of ``rows``, in order: the columns of ``bench.csv``. A row of ``run`` also has
+``Mpsps_rounds``, the throughput of each of its rounds (``best_of``), in ``bench.json`` only."""
 
 MAX_STEPS = 2**31 - 1
 """The most steps a run takes: jaxmpm's step counter is a 32-bit integer."""
@@ -499,8 +512,14 @@ def run(
     extras: bool = True,
     sizes_2d=(),
     sizes_3d=(),
+    rounds: int = 1,
 ) -> dict:
-    """Run the benchmark, one process per float type.
+    """Run the benchmark, one process per float type and round.
+
+    With ``rounds > 1`` every code runs that many times, each round in new processes, the rounds one
+    after another (f32, f64, f32, f64, ...), and each row is the round of its code that ran fastest
+    (``best_of``): a run slowed by another process on the machine does not decide a ratio. The
+    reverse-mode and ensemble measurements run in the first round only.
 
     Args:
         sizes: particle counts of the 1D runs (even: two particles per cell).
@@ -511,11 +530,12 @@ def run(
         extras: also the reverse-mode and ensemble measurements.
         sizes_2d: particle counts of the 2D runs (``4 k^2``).
         sizes_3d: particle counts of the 3D runs (``8 k^3``).
+        rounds: how many times each code runs (at least 1).
 
     Returns:
         The result: ``date``, ``machine``, ``versions``, ``copy_bandwidth_GBps``, the bandwidth
         bounds (``bandwidth_bound_Mpsps_<dtype>``, in 2D and 3D ``..._<dtype>_2d``, ``_3d``),
-        ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
+        ``rounds``, ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
 
     Raises:
         WorkerError: a benchmark process failed.
@@ -529,36 +549,72 @@ def run(
         reverse=[],
         ensemble=[],
     )
+    if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 1:
+        raise ValueError(f"rounds must be an integer >= 1, got {rounds!r}")
+    result["rounds"] = rounds
     bw = copy_bandwidth()
     result["copy_bandwidth_GBps"] = bw / 1e9
-    for k, dtype in enumerate(dtypes):
-        print(
-            f"jaxmpm bench: {dtype} ({k + 1} of {len(dtypes)}), one process ...", file=sys.stderr, flush=True
-        )
-        spec = dict(
-            dtype=dtype,
-            sizes=list(sizes),
-            steps=steps,
-            codes=list(codes),
-            interpolators=list(interpolators),
-            extras=extras,
-            sizes_2d=list(sizes_2d),
-            sizes_3d=list(sizes_3d),
-        )
-        cmd = [sys.executable, "-m", "benchmarks.bench", "--worker", json.dumps(spec)]
-        path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=path))
-        if proc.returncode != 0:
-            raise WorkerError(dtype, proc.returncode, proc.stderr)
-        part = json.loads(proc.stdout.strip().splitlines()[-1])
-        for key in ("rows", "reverse", "ensemble", "numpy_with_fold"):
-            result[key].extend(part.get(key, []))
+    rows = {dtype: [] for dtype in dtypes}
+    for r in range(rounds):
+        for k, dtype in enumerate(dtypes):
+            which = f"{k + 1} of {len(dtypes)}" + (f", round {r + 1} of {rounds}" if rounds > 1 else "")
+            print(f"jaxmpm bench: {dtype} ({which}), one process ...", file=sys.stderr, flush=True)
+            spec = dict(
+                dtype=dtype,
+                sizes=list(sizes),
+                steps=steps,
+                codes=list(codes),
+                interpolators=list(interpolators),
+                extras=extras and r == 0,
+                sizes_2d=list(sizes_2d),
+                sizes_3d=list(sizes_3d),
+            )
+            cmd = [sys.executable, "-m", "benchmarks.bench", "--worker", json.dumps(spec)]
+            path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+            env = dict(os.environ, PYTHONPATH=path)
+            proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+            if proc.returncode != 0:
+                raise WorkerError(dtype, proc.returncode, proc.stderr)
+            part = json.loads(proc.stdout.strip().splitlines()[-1])
+            rows[dtype].append(part["rows"])
+            if r == 0:
+                for key in ("reverse", "ensemble", "numpy_with_fold"):
+                    result[key].extend(part.get(key, []))
+    for dtype in dtypes:
+        result["rows"].extend(best_of(rows[dtype]))
         result[f"bandwidth_bound_Mpsps_{dtype}"] = bandwidth_bound(bw, dtype)
         for dim, dim_sizes in ((2, sizes_2d), (3, sizes_3d)):
             if dim_sizes:
                 result[f"bandwidth_bound_Mpsps_{dtype}_{dim}d"] = bandwidth_bound(bw, dtype, dim)
     result["agreement"] = agreement(result["rows"], result["numpy_with_fold"])
     return result
+
+
+def best_of(rounds_rows: list[list[dict]]) -> list[dict]:
+    """Each code's fastest round: the rows of several rounds of one float type merged.
+
+    Args:
+        rounds_rows: the rows of each round (the same codes, dimensions and sizes in each).
+
+    Returns:
+        One row per code, dimension and size, in the first round's order: the row of the round with
+        the shortest ``run_s`` (a round whose run time is not finite, a reference code's run that
+        broke down, is taken only when every round's is), with ``rounds``, how many rounds it is the
+        best of, and ``Mpsps_rounds``, every round's throughput in order.
+    """
+    key = lambda r: (r["code"], r.get("dim", 1), r["particles"])  # noqa: E731
+    found = {}
+    for rows in rounds_rows:
+        for r in rows:
+            found.setdefault(key(r), []).append(r)
+    out = []
+    for runs in found.values():
+        finite = [r for r in runs if math.isfinite(r["run_s"])]
+        best = dict(min(finite, key=lambda r: r["run_s"]) if finite else runs[0])
+        best["rounds"] = len(runs)
+        best["Mpsps_rounds"] = [r["Mpsps"] for r in runs]
+        out.append(best)
+    return out
 
 
 class WorkerError(RuntimeError):
@@ -649,6 +705,22 @@ def _versions() -> dict:
     return out
 
 
+def _round_ratios(rows: list[dict], n: int, x: str) -> str:
+    """The lowest and highest ratio of ``jaxmpm spq`` to the faster of Taichi and Warp over the
+    rounds of a several-round run (each round's own runs), at ``n`` particles; '' for one round."""
+    at_n = [r for r in rows if r["particles"] == n and len(r.get("Mpsps_rounds", ())) > 1]
+    mine = [r["Mpsps_rounds"] for r in at_n if r["code"] == "jaxmpm spq" + x]
+    fast = [r["Mpsps_rounds"] for r in at_n if r["code"] in ("Taichi" + x, "Warp" + x)]
+    if not mine or not fast:
+        return ""
+    ratios = [
+        m / max(f[i] for f in fast)
+        for i, m in enumerate(mine[0])
+        if math.isfinite(m) and all(math.isfinite(f[i]) for f in fast)
+    ]
+    return f"{min(ratios):.2f}-{max(ratios):.2f}" if ratios else ""
+
+
 def _throughput_table(result: dict, dtype: str, dim: int) -> list[str]:
     """The lines of the throughput table of one dtype and dimension (see ``table``)."""
     x = _suffix(dim)
@@ -676,6 +748,9 @@ def _throughput_table(result: dict, dtype: str, dim: int) -> list[str]:
         ratio.append(f"{mine[0] / max(fast):.2f}" if fast and mine else "")
     if any(ratio):
         lines.append("| jaxmpm spq / faster of Taichi, Warp | " + " | ".join(ratio) + " |")
+        spread = [_round_ratios(rows, n, x) for n in sizes]
+        if any(spread):
+            lines.append("| the same, round by round (lowest-highest) | " + " | ".join(spread) + " |")
     bound = result.get(f"bandwidth_bound_Mpsps_{dtype}" + ("" if dim == 1 else f"_{dim}d"))
     if bound:
         lines.append(
@@ -696,10 +771,16 @@ def table(result: dict) -> str:
         (1D, then 2D, 3D), then the reverse-mode, ensemble and agreement measurements.
     """
     rows = result["rows"]
+    rounds = result.get("rounds", 1)
     lines = [
         f"Measured {result['date']} on {result['machine']}; "
         + ", ".join(f"{k} {v}" for k, v in result["versions"].items())
         + "."
+        + (
+            f" Each code's fastest of {rounds} rounds (every round in new processes, one after another)."
+            if rounds > 1
+            else ""
+        )
     ]
     for dtype in dict.fromkeys(r["dtype"] for r in rows):
         for dim in sorted({r.get("dim", 1) for r in rows if r["dtype"] == dtype}):
@@ -767,7 +848,7 @@ def write(result: dict, out_dir: str | os.PathLike, overwrite: bool = False) -> 
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = io.StringIO(newline="")
-    w = csv.DictWriter(rows, fieldnames=ROW_FIELDS)
+    w = csv.DictWriter(rows, fieldnames=ROW_FIELDS, extrasaction="ignore")
     w.writeheader()
     w.writerows(result["rows"])
     texts = (rows.getvalue(), dumps(result, indent=1), table(result) + "\n")

@@ -258,13 +258,15 @@ def test_bench_command_passes_codes_and_sizes_of_every_dim(monkeypatch, capsys):
     benchmark as particle counts (the run itself replaced by a recorder)."""
     seen = {}
 
-    def record(sizes, steps, dtypes, codes, interpolators, extras, sizes_2d, sizes_3d):
+    def record(sizes, steps, dtypes, codes, interpolators, extras, sizes_2d, sizes_3d, rounds):
         seen.update(sizes=sizes, codes=codes, sizes_2d=sizes_2d, sizes_3d=sizes_3d, extras=extras)
+        seen["rounds"] = rounds
         return dict(date="now", machine="here", versions={}, rows=[], agreement={})
 
     monkeypatch.setattr(bench, "run", record)
     argv = ["bench", "--sizes", "200", "--codes", "warp,numpy,jaxmpm", "--sizes-3d", "64,512", "--no-extras"]
     assert cli.main(argv) == 0
+    assert seen.pop("rounds") == 1
     assert seen == dict(
         sizes=[200],
         codes=["warp", "numpy", "jaxmpm"],
@@ -272,8 +274,9 @@ def test_bench_command_passes_codes_and_sizes_of_every_dim(monkeypatch, capsys):
         sizes_3d=[64, 512],
         extras=False,
     )
-    assert cli.main(["bench", "--sizes", "200", "--sizes-2d", "", "--no-extras"]) == 0
+    assert cli.main(["bench", "--sizes", "200", "--sizes-2d", "", "--no-extras", "--rounds", "3"]) == 0
     assert seen["codes"] == list(bench.CODES) and seen["sizes_2d"] == [] and seen["sizes_3d"] == []
+    assert seen["rounds"] == 3
     capsys.readouterr()
 
 
@@ -336,6 +339,78 @@ def test_table_has_a_ratio_row_per_dimension():
     assert "| jaxmpm spq / faster of Taichi, Warp | 0.75 |" in two  # 6 / max(4, 8)
     assert "| jaxmpm mpq 2D | 2.0 (0.50) |" in two and "Warp 2D" not in one
     assert "reference codes 2D 1.0e-07" in text
+
+
+def _row(code, run_s, n=1000, dim=1, steps=10):
+    return dict(
+        code=code,
+        dtype="f32",
+        particles=n,
+        steps=steps,
+        compile_s=0.5,
+        run_s=run_s,
+        Mpsps=n * steps / run_s / 1e6,
+        F_mean=0.5,
+        status=0,
+        dim=dim,
+    )
+
+
+def test_best_of_keeps_each_codes_fastest_round():
+    nan = float("nan")
+    rounds = [
+        [_row("Warp", 0.010), _row("jaxmpm spq", 0.020), _row("NumPy", nan), _row("Warp 2D", 0.4, dim=2)],
+        [_row("Warp", 0.008), _row("jaxmpm spq", 0.025), _row("NumPy", 0.5), _row("Warp 2D", 0.5, dim=2)],
+        [_row("Warp", 0.012), _row("jaxmpm spq", 0.005), _row("NumPy", nan), _row("Warp 2D", 0.2, dim=2)],
+    ]
+    best = bench.best_of(rounds)
+    assert [r["code"] for r in best] == ["Warp", "jaxmpm spq", "NumPy", "Warp 2D"]
+    assert [r["run_s"] for r in best] == [0.008, 0.005, 0.5, 0.2]
+    assert all(r["rounds"] == 3 for r in best)
+    assert best[0]["Mpsps_rounds"] == [1.0, 1.25, 1000 * 10 / 0.012 / 1e6]
+    assert best[0]["Mpsps"] == 1.25 and best[1]["Mpsps"] == 2.0
+    # every round broke down: the first round's row, its run time not finite
+    assert np.isnan(bench.best_of([[_row("NumPy", nan)], [_row("NumPy", nan)]])[0]["run_s"])
+    # one round: the row itself
+    assert bench.best_of([[_row("Warp", 0.01)]]) == [dict(_row("Warp", 0.01), rounds=1, Mpsps_rounds=[1.0])]
+
+
+def test_table_of_several_rounds_shows_the_spread_of_the_ratio():
+    rounds = [
+        [_row("Taichi", 0.02), _row("Warp", 0.01), _row("jaxmpm spq", 0.02)],  # 0.5
+        [_row("Taichi", 0.02), _row("Warp", 0.02), _row("jaxmpm spq", 0.01)],  # 2.0
+    ]
+    result = dict(
+        date="now",
+        machine="here",
+        versions={},
+        copy_bandwidth_GBps=10.0,
+        rounds=2,
+        rows=bench.best_of(rounds),
+        agreement={},
+    )
+    text = bench.table(result)
+    assert "Each code's fastest of 2 rounds" in text
+    assert "| jaxmpm spq / faster of Taichi, Warp | 1.00 |" in text  # 1.0 / max(0.5, 1.0)
+    assert "| the same, round by round (lowest-highest) | 0.50-2.00 |" in text
+    one = dict(result, rounds=1, rows=bench.best_of(rounds[:1]))
+    assert "round by round" not in bench.table(one) and "rounds" not in bench.table(one).splitlines()[0]
+
+
+def test_a_run_of_two_rounds_keeps_both(tmp_path):
+    """Two real rounds of a tiny benchmark (two processes): every row is the best of both, and
+    ``bench.csv`` has the ``rounds`` column."""
+    result = bench.run([100], 2, ["f64"], ["numpy", "jax"], [], extras=False, rounds=2)
+    assert result["rounds"] == 2
+    assert [r["code"] for r in result["rows"]] == ["NumPy", "plain JAX"]
+    for r in result["rows"]:
+        assert r["rounds"] == 2 and len(r["Mpsps_rounds"]) == 2 and r["Mpsps"] == max(r["Mpsps_rounds"])
+    bench.write(result, tmp_path)
+    csv_rows = (tmp_path / "bench.csv").read_text().splitlines()
+    assert csv_rows[0].endswith(",dim,rounds") and all(line.endswith(",1,2") for line in csv_rows[1:])
+    assert "Each code's fastest of 2 rounds" in (tmp_path / "bench.md").read_text()
+    with pytest.raises(ValueError, match="rounds must be an integer >= 1, got 0"):
+        bench.run([100], 2, ["f64"], ["numpy"], [], extras=False, rounds=0)
 
 
 def test_a_reference_code_that_breaks_down_is_reported(monkeypatch):

@@ -242,6 +242,9 @@ def test_no_run_fits_in_too_little_memory(capsys, monkeypatch, recorded):
         (dict(codes="cuda"), "--codes"),
         (dict(codes="jaxmpm", interpolators=""), "--interpolators"),
         (dict(codes="jaxmpm", interpolators="spq,spq"), "--interpolators"),
+        (dict(rounds="0"), "--rounds"),
+        (dict(rounds="-2"), "--rounds"),
+        (dict(rounds="two"), "--rounds"),
     ],
 )
 def test_bad_values_are_one_line_naming_the_option(options, named, capsys, recorded):

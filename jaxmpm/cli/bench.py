@@ -43,7 +43,9 @@ def add_parser(subparsers) -> None:
         help="particle counts of the 3D runs (8 k^3: k^3 cells of 2 x 2 x 2), comma-separated; "
         "'' (the default) for none",
     )
-    p.add_argument("--dtypes", default="f32,f64", help="f32, f64 or f32,f64, comma-separated (each in its own process)")
+    p.add_argument(
+        "--dtypes", default="f32,f64", help="f32, f64 or f32,f64, comma-separated (each in its own process)"
+    )
     p.add_argument(
         "--codes",
         help="among numpy, jax (plain JAX), taichi, warp (when installed: pip install jaxmpm[bench]), "
@@ -56,6 +58,13 @@ def add_parser(subparsers) -> None:
         "--overwrite",
         action="store_true",
         help="with --out: replace the bench.csv, bench.json and bench.md there (else refused)",
+    )
+    p.add_argument(
+        "--rounds",
+        type=int,
+        default=1,
+        help="run every code this many times, each round in new processes, and keep each code's "
+        "fastest round (bench.json keeps every round's throughput); default 1",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(handler=command)
@@ -180,6 +189,8 @@ def command(args) -> int:
             f"--steps must be an integer from 2 to {bench.MAX_STEPS} (the step counter is a 32-bit "
             f"integer), got {args.steps}"
         )
+    if args.rounds < 1:
+        raise UsageError(f"--rounds must be an integer >= 1, got {args.rounds}")
     sizes_2d = _sizes(args.sizes_2d, "--sizes-2d", 2, bench.cells_of)
     sizes_3d = _sizes(args.sizes_3d, "--sizes-3d", 3, bench.cells_of)
     dtypes = _distinct(_assign.choices(args.dtypes, "--dtypes", ("f32", "f64")), "--dtypes", args.dtypes)
@@ -229,6 +240,7 @@ def command(args) -> int:
             extras=not args.no_extras,
             sizes_2d=sizes_2d,
             sizes_3d=sizes_3d,
+            rounds=args.rounds,
         )
     except bench.WorkerError as e:
         print(f"jaxmpm: error: {e}", file=sys.stderr)
