@@ -109,12 +109,13 @@ def power(x: Array, p: Array) -> Array:
 
     In float32 it is computed as ``exp(p log x)``: XLA's CPU backend runs a float32 ``power`` as one
     scalar library call per element, and ``exp`` and ``log`` as vectorised polynomials that fuse with
-    their neighbours (102,400 values: 0.67 against 0.19 ms, measured; with ``**`` a gas's pressure
-    takes 18% of a 1D SPQ step of 1M particles). The price is accuracy: it rounds the exponent
-    ``p log x``, and is within ``2 (1 + |p log x|)`` ulps of the exact power (tests/test_power.py;
-    2-3 ulps for a gas's ``|log J| < 0.1``), where ``**`` is within 0.5-3 ulps. A base ``x <= 0``
-    gives NaN or infinity, as ``**`` does for non-integer ``p``. Every other dtype (float64 among
-    them, where both forms are library calls and take about the same time) uses ``**`` itself.
+    their neighbours (102,400 values: 0.67 against 0.19 ms, ``experiments/power_forms.py``; with
+    ``**`` a gas's pressure takes 18% of a 1D SPQ step of 1M particles). The price is accuracy: it
+    rounds the exponent ``p log x``, and is within ``2 (1 + |p log x|)`` ulps of the exact power
+    (``tests/test_power.py``; 2-3 ulps for a gas's ``|log J| < 0.1``), where ``**`` is within 0.5-3
+    ulps. A base ``x <= 0`` gives NaN or infinity, as ``**`` does for non-integer ``p``. Every other
+    dtype (float64 among them, where both forms are library calls and take about the same time) uses
+    ``**`` itself.
 
     Args:
         x: the bases, positive.
