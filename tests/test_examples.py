@@ -73,7 +73,7 @@ LONG = {  # over about 10 s each, single process on 2 cores
     "jaxmpm study gurney --out": "the full Gurney cylinder study",
     "python:docs/detonation.md": "the Gurney slab to 30 us, and a fit of the products to a plate's velocity",
     "jaxmpm bench --out": "the full benchmark",
-    "jaxmpm bench --sizes 8000 --sizes-2d 102400": "the 2D and 3D benchmark (minutes)",
+    "jaxmpm bench --sizes 65536,262144,1048576 --sizes-2d 102400": "the 2D and 3D benchmark (half an hour)",
     "jaxmpm run axis-aligned dim=3": "a 3D run of 4,096 particles: its compilation",
     "python:docs/calibration.md": "a fit with two starts, and a 1,024-member ensemble",
 }
