@@ -113,9 +113,10 @@ def power(x: Array, p: Array) -> Array:
     ``**`` a gas's pressure takes 18% of a 1D SPQ step of 1M particles). The price is accuracy: it
     rounds the exponent ``p log x``, and is within ``2 (1 + |p log x|)`` ulps of the exact power
     (``tests/test_power.py``; 2-3 ulps for a gas's ``|log J| < 0.1``), where ``**`` is within 0.5-3
-    ulps. A base ``x <= 0`` gives NaN or infinity, as ``**`` does for non-integer ``p``. Every other
-    dtype (float64 among them, where both forms are library calls and take about the same time) uses
-    ``**`` itself.
+    ulps. A base ``x <= 0`` gives what ``**`` gives for a non-integer ``p``: 0 or infinity at 0, NaN
+    below. Every other dtype uses ``**`` itself: in float64 both forms make a library call per
+    element (``exp(p log x)`` took 0.5-0.9 ms against 0.7-1.0 in two measurements, its ``log`` the
+    call), and ``**`` keeps float64 results bit for bit what they are.
 
     Args:
         x: the bases, positive.
