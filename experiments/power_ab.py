@@ -1,0 +1,60 @@
+"""The benchmark's jaxmpm run with the gas's power law as ``**`` and as ``jaxmpm._util.power`` (float32:
+``exp(p log J)``), the two alternating in one process: M particle-steps/s, best of 3 runs per round.
+
+The ``**`` form is the adiabatic gas's pressure ``P0 J^-gamma - p_atm`` written with ``**``, put in
+place of the library's for its rounds. Also prints each form's mean final F.
+
+    python experiments/power_ab.py [--dtype f32] [--dim 1] [--n 1048576] [--rounds 2] [--interpolator spq]
+"""
+
+import argparse
+import pathlib
+import sys
+
+import jax
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dtype", choices=("f32", "f64"), default="f32")
+    parser.add_argument("--dim", type=int, choices=(1, 2, 3), default=1)
+    parser.add_argument("--n", type=int, default=1_048_576)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--interpolator", default="spq")
+    args = parser.parse_args()
+    jax.config.update("jax_enable_x64", args.dtype == "f64")
+    import jax.numpy as jnp
+
+    import jaxmpm as jm
+    from jaxmpm import materials
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    from benchmarks.bench import _scene, steps_for
+
+    library = materials.AdiabaticGas.pressure
+
+    def with_pow(self, J):
+        return self.P0 * J ** (-self.gamma) - self.p_atm
+
+    steps = steps_for(args.n, 100)
+    scene, dt = _scene(args.n, args.dim)
+    speed, F_mean = {}, {}
+    for _ in range(args.rounds):
+        for form, pressure in (("**", with_pow), ("power", library)):
+            materials.AdiabaticGas.pressure = pressure
+            jax.clear_caches()
+            best = float("inf")
+            for _ in range(3):
+                sol, _, run_s = jm.simulate_timed(
+                    scene, jm.INTERPOLATORS[args.interpolator](), dt=dt, steps=steps, throw=False
+                )
+                best = min(best, run_s)
+            speed.setdefault(form, []).append(round(args.n * steps / best / 1e6, 1))
+            F_mean[form] = float(jnp.mean(sol.state.F))
+    materials.AdiabaticGas.pressure = library
+    for form in speed:
+        print(f"{form:6s} M particle-steps/s by round: {speed[form]}, mean final F {F_mean[form]!r}")
+
+
+if __name__ == "__main__":
+    main()
