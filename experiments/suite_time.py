@@ -1,0 +1,179 @@
+"""Where the test suite's time goes: JAX's tracing, lowering to MLIR and XLA compilation, per test.
+
+A pytest plugin and the report of what it logged. Run the suite (or part of it) with the plugin,
+then read the report::
+
+    PYTHONPATH=experiments python -m pytest -q -p suite_time --suite-time-log /tmp/suite_time
+    python experiments/suite_time.py /tmp/suite_time
+
+Each process that runs tests (each pytest-xdist worker, or pytest itself without workers) writes
+``<log>/<worker>.jsonl``: one line per test with its wall time, and one per compilation event JAX
+reports to its monitoring listeners (``jaxpr_trace_duration``, ``jaxpr_to_mlir_module_duration``,
+``backend_compile_duration``, the last including a read from the on-disk compilation cache), with
+the name of the function compiled and the test it happened in. The report sums them per file, per
+test function (its parametrisations together), per compiled function and per worker.
+
+Processes that a test starts (command lines, notebooks, docs examples) are not seen: their time
+counts as the test's wall time only. A jitted function traced inside another's trace reports its own
+tracing too, so tracing can be counted twice where jitted functions nest. Give an empty folder: a
+worker's file replaces the one of the same name.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+EVENTS = {
+    "jaxpr_trace_duration": "trace",
+    "jaxpr_to_mlir_module_duration": "lower",
+    "backend_compile_duration": "compile",
+}
+
+
+# --- the plugin -------------------------------------------------------------------------------------
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--suite-time-log",
+        metavar="DIR",
+        default=None,
+        help="write each test's wall time and JAX compilation events to DIR/<worker>.jsonl",
+    )
+
+
+class _Log:
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.test = "<outside tests>"
+        self.rows: list[tuple[str, str, str, float]] = []
+
+    def listen(self, event, duration, **kwargs):
+        kind = EVENTS.get(event.rsplit("/", 1)[-1])
+        if kind is not None:
+            self.rows.append((self.test, kind, str(kwargs.get("fun_name", "")), float(duration)))
+
+
+_LOG: list[_Log] = []
+
+
+def pytest_configure(config):
+    folder = config.getoption("--suite-time-log")
+    if folder is None:
+        return
+    import jax
+
+    log = _Log(Path(folder))
+    jax.monitoring.register_event_duration_secs_listener(log.listen)
+    _LOG.append(log)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    if not _LOG:
+        yield
+        return
+    log = _LOG[0]
+    log.test = item.nodeid
+    start = time.perf_counter()
+    yield
+    log.rows.append((item.nodeid, "wall", "", time.perf_counter() - start))
+    log.test = "<between tests>"
+
+
+def pytest_sessionfinish(session):
+    if not _LOG or not any(kind == "wall" for _, kind, _, _ in _LOG[0].rows):
+        return  # off, or a process that ran no tests (pytest-xdist's controller)
+    log = _LOG[0]
+    log.folder.mkdir(parents=True, exist_ok=True)
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    with open(log.folder / f"{worker}.jsonl", "w") as f:
+        for row in log.rows:
+            f.write(json.dumps(row) + "\n")
+
+
+# --- the report -------------------------------------------------------------------------------------
+
+
+def load(folder: Path) -> dict[str, list[tuple[str, str, str, float]]]:
+    """The rows each worker logged, by worker name."""
+    files = sorted(folder.glob("*.jsonl"))
+    if not files:
+        raise SystemExit(f"no *.jsonl in {folder}: run pytest with -p suite_time --suite-time-log {folder}")
+    return {f.stem: [tuple(json.loads(line)) for line in f.read_text().splitlines()] for f in files}
+
+
+def report(logs: dict[str, list[tuple[str, str, str, float]]], top: int = 25) -> str:
+    """The tables: totals, per worker, per file, per test function, per compiled function."""
+    rows = [r for worker_rows in logs.values() for r in worker_rows]
+
+    def table(key, title, n):
+        sums = collections.defaultdict(collections.Counter)
+        for test, kind, fun, d in rows:
+            k = key(test, fun)
+            if k is None:
+                continue
+            sums[k][kind] += d
+            sums[k][f"n_{kind}"] += 1
+        order = sorted(sums.items(), key=lambda kv: -(kv[1]["wall"] or kv[1]["compile"]))[:n]
+        out = [
+            f"\n{title}\n",
+            "| wall s | trace s | lower s | compile s | compilations | tests | |",
+            "|---" * 7 + "|",
+        ]
+        for k, c in order:
+            out.append(
+                f"| {c['wall']:.1f} | {c['trace']:.1f} | {c['lower']:.1f} | {c['compile']:.1f} | "
+                f"{c['n_compile']} | {c['n_wall']} | {k} |"
+            )
+        return out
+
+    total = collections.Counter()
+    count = collections.Counter()
+    for _, kind, _, d in rows:
+        total[kind] += d
+        count[kind] += 1
+    jax_s = total["trace"] + total["lower"] + total["compile"]
+    lines = [
+        f"{count['wall']} tests, {total['wall']:.0f} s of test time over {len(logs)} worker(s); "
+        f"{count['compile']} compilations: tracing {total['trace']:.0f} s, lowering {total['lower']:.0f} s, "
+        f"XLA compilation {total['compile']:.0f} s ({jax_s / max(total['wall'], 1e-9):.0%} of the test time)",
+        "",
+        "Per worker (test time, tests): "
+        + ", ".join(
+            f"{w} {sum(d for _, k, _, d in r if k == 'wall'):.0f} s, {sum(k == 'wall' for _, k, _, _ in r)}"
+            for w, r in logs.items()
+        ),
+    ]
+    lines += table(lambda t, f: t.split("::")[0], "Per file", top)
+    lines += table(
+        lambda t, f: re.sub(r"\[.*\]$", "", t), "Per test function (parametrisations together)", top
+    )
+    lines += table(
+        lambda t, f: re.sub(r"^jit\((.*)\)$", r"\1", f) or None,
+        "Per compiled function (its tracing, lowering and compilations; no wall time of its own)",
+        top,
+    )
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("log", type=Path, help="the folder given to --suite-time-log")
+    parser.add_argument("--top", type=int, default=25, help="rows per table (default 25)")
+    args = parser.parse_args(argv)
+    print(report(load(args.log), args.top))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
