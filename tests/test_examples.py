@@ -51,7 +51,10 @@ EXCLUDED = {
     r"python3? -m venv\b.*": "installing: CI creates the environment (.ci/run); this test runs in it",
     r"(\.|source) \S*/activate": "installing: CI creates the environment (.ci/run); this test runs in it",
     r"(python3? -m )?pip install\b.*": "installing: CI installs the package itself (.ci/run)",
-    r"python3? -m pytest\b.*": "the test suite itself: CI runs it (.ci/run), and this test is part of it",
+    r"(\w+=\S+ )*python3? -m pytest\b.*": "the test suite itself: CI runs it (.ci/run), and this test is "
+    "part of it",
+    r"python3? experiments/suite_time\.py\b.*": "the report of a run of the test suite with its logging "
+    "plugin (the line before it, the suite itself, is not run here)",
     r"mkdocs serve\b.*": "a server, it runs until stopped; CI builds the same site (mkdocs build --strict)",
     r"srun\b.*": "a cluster's launcher: CI has no cluster; docs/scale.md's next example and "
     "tests/test_multiprocess.py run the same with two local processes",
