@@ -555,6 +555,8 @@ def run(
     bw = copy_bandwidth()
     result["copy_bandwidth_GBps"] = bw / 1e9
     rows = {dtype: [] for dtype in dtypes}
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    env = dict(os.environ, PYTHONPATH=path)  # the worker imports benchmarks from the source tree
     for r in range(rounds):
         for k, dtype in enumerate(dtypes):
             which = f"{k + 1} of {len(dtypes)}" + (f", round {r + 1} of {rounds}" if rounds > 1 else "")
@@ -570,8 +572,6 @@ def run(
                 sizes_3d=list(sizes_3d),
             )
             cmd = [sys.executable, "-m", "benchmarks.bench", "--worker", json.dumps(spec)]
-            path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
-            env = dict(os.environ, PYTHONPATH=path)
             proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
             if proc.returncode != 0:
                 raise WorkerError(dtype, proc.returncode, proc.stderr)
