@@ -2,7 +2,9 @@
 ``exp(p log J)``), the two alternating in one process: M particle-steps/s, best of 3 runs per round.
 
 The ``**`` form is the adiabatic gas's pressure ``P0 J^-gamma - p_atm`` written with ``**``, put in
-place of the library's for its rounds. Also prints each form's mean final F.
+place of the library's for its rounds. In float64 a third form alternates with them: ``exp(-gamma
+log J)`` with the vectorised logarithm of ``experiments/power_forms.py``. Also prints each form's
+mean final F and, for each form, the largest difference of its final F from the library's in ulps.
 
     python experiments/power_ab.py [--dtype f32] [--dim 1] [--n 1048576] [--rounds 2] [--interpolator spq]
 """
@@ -33,14 +35,23 @@ def main() -> None:
 
     library = materials.AdiabaticGas.pressure
 
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from power_forms import log_vectorised
+
     def with_pow(self, J):
         return self.P0 * J ** (-self.gamma) - self.p_atm
 
+    def with_vectorised_log(self, J):
+        return self.P0 * jnp.exp(-self.gamma * log_vectorised(J)) - self.p_atm
+
+    forms = [("**", with_pow), ("power", library)]
+    if args.dtype == "f64":
+        forms.append(("vec log", with_vectorised_log))
     steps = steps_for(args.n, 100)
     scene, dt = _scene(args.n, args.dim)
-    speed, F_mean = {}, {}
+    speed, F_mean, F = {}, {}, {}
     for _ in range(args.rounds):
-        for form, pressure in (("**", with_pow), ("power", library)):
+        for form, pressure in forms:
             materials.AdiabaticGas.pressure = pressure
             jax.clear_caches()
             best = float("inf")
@@ -51,9 +62,14 @@ def main() -> None:
                 best = min(best, run_s)
             speed.setdefault(form, []).append(round(args.n * steps / best / 1e6, 1))
             F_mean[form] = float(jnp.mean(sol.state.F))
+            F[form] = sol.state.F
     materials.AdiabaticGas.pressure = library
     for form in speed:
-        print(f"{form:6s} M particle-steps/s by round: {speed[form]}, mean final F {F_mean[form]!r}")
+        ulps = float(jnp.max(jnp.abs(F[form] - F["power"]) / jnp.spacing(F["power"])))
+        print(
+            f"{form:7s} M particle-steps/s by round: {speed[form]}, mean final F {F_mean[form]!r}, "
+            f"final F within {ulps:.0f} ulps of the library's"
+        )
 
 
 if __name__ == "__main__":
