@@ -8,7 +8,8 @@ In float64 XLA's ``log`` (like its ``power``) is one library call per element, w
 a vectorised polynomial. ``log_vectorised`` is a float64 logarithm written in array operations (the
 algorithm of fdlibm's ``__ieee754_log``: exponent and mantissa split by bit operations, a polynomial
 in ``s = f / (2 + f)``), which XLA vectorises; ``exp(p log_vectorised(J))`` is the third form here,
-with its largest error against a long-double ``log`` over ``[0.2, 5]``.
+with its largest error against NumPy's long-double ``log`` over ``[0.2, 5]`` (x86's 80-bit long
+double; where long double is float64, the reference is only NumPy's own float64 ``log``).
 
     python experiments/power_forms.py [--n 102400]
 """
@@ -34,7 +35,10 @@ _LN2_HI, _LN2_LO = 6.93147180369123816490e-01, 1.90821492927058770002e-10
 
 
 def log_vectorised(x):
-    """``log x`` of float64 ``x > 0`` (normal numbers) in array operations: within 1 ulp."""
+    """``log x`` of float64 ``x > 0`` (normal numbers) in array operations: within 1 ulp.
+
+    Zero, negative, subnormal, infinite and NaN inputs are not handled (fdlibm's special cases are
+    left out): what it returns for them means nothing."""
     bits = jax.lax.bitcast_convert_type(x, jnp.int64)
     high = (bits >> 32).astype(jnp.int32)
     k = (high >> 20) - 1023
