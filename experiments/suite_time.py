@@ -10,8 +10,12 @@ Each process that runs tests (each pytest-xdist worker, or pytest itself without
 ``<log>/<worker>.jsonl``: one line per test with its wall time, and one per compilation event JAX
 reports to its monitoring listeners (``jaxpr_trace_duration``, ``jaxpr_to_mlir_module_duration``,
 ``backend_compile_duration``, the last including a read from the on-disk compilation cache), with
-the name of the function compiled and the test it happened in. The report sums them per file, per
-test function (its parametrisations together), per compiled function and per worker.
+the name of the function compiled and the test it happened in, and one per whole run that
+``jm.simulate`` compiles or reuses (the program's structure: its model's static fields and array
+shapes, what it saves, its checkpoint block and its step count). The report sums them per file, per
+test function (its parametrisations together), per compiled function and per worker, and counts the
+distinct whole-run programs with and without their step count (what a step count that is not static
+would share).
 
 Processes that a test starts (command lines, notebooks, docs examples) are not seen: their time
 counts as the test's wall time only. A jitted function traced inside another's trace reports its own
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import hashlib
 import json
 import os
 import re
@@ -66,6 +71,39 @@ class _Log:
 _LOG: list[_Log] = []
 
 
+def _program(model, dt, steps, saveat, block) -> str:
+    """A key of the whole-run program ``jm.simulate`` compiles, the same in every process: the model's
+    static part (its repr, memory addresses dropped), the tree and the shapes and dtypes of its arrays,
+    and the other static arguments. The step count is kept apart, after the last ``|``."""
+    import equinox as eqx
+    import jax
+
+    arrays, static = eqx.partition(model, eqx.is_array)
+    leaves, tree = jax.tree_util.tree_flatten(arrays)
+    shapes = [(tuple(a.shape), str(a.dtype)) for a in leaves]
+    text = re.sub(r" at 0x[0-9a-f]+", "", repr(static)) + str(tree) + str(shapes)
+    text += repr(saveat) + repr(block) + type(dt).__name__ + str(getattr(dt, "dtype", ""))
+    return f"{hashlib.sha1(text.encode()).hexdigest()}|{steps}"
+
+
+def _log_programs(log: _Log) -> None:
+    """Record every whole run's program key, then run it as before."""
+    from jaxmpm import _simulate
+
+    compiled = _simulate._run_scan_jit
+
+    class Logged:
+        def __call__(self, model, dt, steps, saveat, block):
+            log.rows.append((log.test, "run", _program(model, dt, steps, saveat, block), 0.0))
+            return compiled(model, dt, steps, saveat, block)
+
+        def lower(self, model, dt, steps, saveat, block):  # simulate_timed: compiled apart from the run
+            log.rows.append((log.test, "run", _program(model, dt, steps, saveat, block), 0.0))
+            return compiled.lower(model, dt, steps, saveat, block)
+
+    _simulate._run_scan_jit = Logged()
+
+
 def pytest_configure(config):
     folder = config.getoption("--suite-time-log")
     if folder is None:
@@ -74,6 +112,7 @@ def pytest_configure(config):
 
     log = _Log(Path(folder))
     jax.monitoring.register_event_duration_secs_listener(log.listen)
+    _log_programs(log)
     _LOG.append(log)
 
 
@@ -119,6 +158,8 @@ def report(logs: dict[str, list[tuple[str, str, str, float]]], top: int = 25) ->
     def table(key, title, n):
         sums = collections.defaultdict(collections.Counter)
         for test, kind, fun, d in rows:
+            if kind == "run":
+                continue
             k = key(test, fun)
             if k is None:
                 continue
@@ -154,6 +195,21 @@ def report(logs: dict[str, list[tuple[str, str, str, float]]], top: int = 25) ->
             for w, r in logs.items()
         ),
     ]
+    runs = {w: [fun for _, kind, fun, _ in r if kind == "run"] for w, r in logs.items()}
+    every = [p for r in runs.values() for p in r]
+    lines += [
+        "",
+        f"Whole runs (jm.simulate): {len(every)} calls, {len(set(every))} distinct programs over the "
+        f"workers ({', '.join(f'{w} {len(set(r))}' for w, r in runs.items())}), "
+        f"{len({p.rsplit('|', 1)[0] for p in every})} without their step count",
+    ]
+    first = {}
+    for test, kind, fun, _ in rows:
+        if kind == "run":
+            first.setdefault(fun, test.split("::")[0])
+    per_file = collections.Counter(first.values()).most_common(top)
+    lines += ["Distinct whole-run programs per file (where each first ran): "]
+    lines += [f"  {n} {f}" for f, n in per_file]
     lines += table(lambda t, f: t.split("::")[0], "Per file", top)
     lines += table(
         lambda t, f: re.sub(r"\[.*\]$", "", t), "Per test function (parametrisations together)", top
