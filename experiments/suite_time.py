@@ -73,16 +73,18 @@ _LOG: list[_Log] = []
 
 def _program(model, dt, steps, saveat, block) -> str:
     """A key of the whole-run program ``jm.simulate`` compiles, the same in every process: the model's
-    static part (its repr, memory addresses dropped), the tree and the shapes and dtypes of its arrays,
-    and the other static arguments. The step count is kept apart, after the last ``|``."""
+    static part, the tree of its arrays (which carries the static fields) and their shapes and dtypes,
+    and the other static arguments, with memory addresses dropped. The step count is kept apart,
+    after the last ``|``."""
     import equinox as eqx
     import jax
 
     arrays, static = eqx.partition(model, eqx.is_array)
     leaves, tree = jax.tree_util.tree_flatten(arrays)
     shapes = [(tuple(a.shape), str(a.dtype)) for a in leaves]
-    text = re.sub(r" at 0x[0-9a-f]+", "", repr(static)) + str(tree) + str(shapes)
+    text = repr(static) + str(tree) + str(shapes)
     text += repr(saveat) + repr(block) + type(dt).__name__ + str(getattr(dt, "dtype", ""))
+    text = re.sub(r" at 0x[0-9a-f]+", "", text)
     return f"{hashlib.sha1(text.encode()).hexdigest()}|{steps}"
 
 

@@ -36,3 +36,47 @@ def test_report_sums_per_file_test_function_and_compiled_function(tmp_path):
     assert "| 1.0 | 0.0 | 0.0 | 0.5 | 1 | 1 | tests/test_b.py::test_y |" in text
     # the trace event names the function bare, the compilation as jit(...): one row
     assert "| 0.0 | 0.5 | 0.2 | 3.0 | 2 | 0 | run_scan |" in text
+
+
+def test_report_counts_distinct_whole_run_programs_with_and_without_their_step_count(tmp_path):
+    rows = {
+        "gw0": [
+            ("tests/test_a.py::test_x", "run", "k1|10", 0.0),
+            ("tests/test_a.py::test_x", "run", "k1|10", 0.0),  # the same program again
+            ("tests/test_a.py::test_x", "run", "k1|20", 0.0),  # the same structure, other steps
+            ("tests/test_a.py::test_x", "wall", "", 1.0),
+        ],
+        "gw1": [
+            ("tests/test_b.py::test_y", "run", "k2|10", 0.0),
+            ("tests/test_b.py::test_y", "run", "k1|10", 0.0),  # first ran in test_a.py
+            ("tests/test_b.py::test_y", "wall", "", 1.0),
+        ],
+    }
+    for worker, r in rows.items():
+        (tmp_path / f"{worker}.jsonl").write_text("".join(json.dumps(x) + "\n" for x in r))
+    text = report(load(tmp_path))
+    assert (
+        "Whole runs (jm.simulate): 5 calls, 3 distinct programs over the workers (gw0 2, gw1 2), "
+        "2 without their step count"
+    ) in text
+    assert "  2 tests/test_a.py\n  1 tests/test_b.py" in text
+    assert "| 1.0 | 0.0 | 0.0 | 0.0 | 0 | 1 | tests/test_a.py |" in text  # run rows add no time
+
+
+def test_the_plugin_logs_each_whole_run_with_its_program(monkeypatch):
+    import jaxmpm as jm
+    from experiments.suite_time import _Log, _log_programs
+    from jaxmpm import _simulate
+
+    monkeypatch.setattr(_simulate, "_run_scan_jit", _simulate._run_scan_jit)  # restored afterwards
+    log = _Log(None)
+    log.test = "t"
+    _log_programs(log)
+    for cells, steps in ((3, 1), (3, 1), (3, 2), (4, 1)):
+        sol = jm.simulate(jm.GasExpansion(cells=cells), jm.SPQ(), dt=1e-5, steps=steps)
+        assert int(sol.status) == 0
+    keys = [fun for test, kind, fun, _ in log.rows if kind == "run"]
+    assert len(keys) == 4 and all(test == "t" for test, *_ in log.rows)
+    assert keys[0] == keys[1]  # the same run: the same program
+    assert keys[2] != keys[0] and keys[2].rsplit("|", 1)[0] == keys[0].rsplit("|", 1)[0]  # steps only
+    assert keys[3].rsplit("|", 1)[0] != keys[0].rsplit("|", 1)[0]  # another size, another program
