@@ -210,7 +210,7 @@ def report(logs: dict[str, list[tuple[str, str, str, float]]], top: int = 25) ->
         if kind == "run":
             first.setdefault(fun, test.split("::")[0])
     per_file = collections.Counter(first.values()).most_common(top)
-    lines += ["Distinct whole-run programs per file (where each first ran): "]
+    lines += ["Distinct whole-run programs per file (where each first ran):"]
     lines += [f"  {n} {f}" for f, n in per_file]
     lines += table(lambda t, f: t.split("::")[0], "Per file", top)
     lines += table(
