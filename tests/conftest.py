@@ -6,8 +6,8 @@ import tempfile
 # The suite compiles several hundred small programs and runs each for a moment, so compiling is most
 # of its time. XLA's CPU backend at optimisation level 0, with its classic (non-MLIR) fusion emitters,
 # compiles a reverse-mode run about 2.5 times faster (1.3 s -> 0.5 s measured) and halves the suite.
-# Each program is compiled as one LLVM module (no split for parallel codegen: the two xdist workers
-# already keep both cores busy): XLA compile time of the suite 309 s -> 242 s summed.
+# Each program is compiled as one LLVM module (no split for parallel codegen: the xdist workers
+# already keep every core busy): XLA compile time of the suite 309 s -> 242 s summed.
 os.environ["XLA_FLAGS"] = " ".join(
     (
         os.environ.get("XLA_FLAGS", ""),
@@ -40,6 +40,16 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
 from helpers import INTERPOLATORS, TRANSFERS  # noqa: E402
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto`` (the suite's default): one pytest-xdist worker more than the cores this process may
+    use. A worker often waits (on a process a test started: a command line, a notebook, a docs example,
+    a multi-process run), and the extra worker fills the cores meanwhile. Whole suite on 2 cores,
+    alternating: 3 workers 484, 510 and 495 s; 2 workers 522 and 522 s; 4 workers 523 and 480 s."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return cores + 1
+
 
 # Python's cyclic garbage collector scans every tracked object in a full collection, and a worker's
 # heap holds JAX, its caches and every traced program: full collections cost ~0.5 s each. What is
