@@ -46,7 +46,8 @@ def pytest_xdist_auto_num_workers(config):
     """``-n auto`` (the suite's default): one pytest-xdist worker more than the cores this process may
     use. A worker often waits (on a process a test started: a command line, a notebook, a docs example,
     a multi-process run), and the extra worker fills the cores meanwhile. Whole suite on 2 cores,
-    alternating: 3 workers 484, 510 and 495 s; 2 workers 522 and 522 s; 4 workers 523 and 480 s."""
+    alternating: 3 workers 484, 510, 495 and 486 s; 2 workers 522, 522 and 516 s; 4 workers 523 and
+    480 s."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     return cores + 1
 
