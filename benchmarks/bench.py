@@ -820,11 +820,19 @@ def table(result: dict) -> str:
             "",
             "Mean final F, largest relative difference from NumPy's: "
             + "; ".join(
-                f"{k}: " + (", ".join(f"{g} {v:.1e}" for g, v in d.items()) or "no healthy runs to compare")
+                f"{k}: " + (", ".join(f"{g} {v:.1e}" for g, v in d.items()) or _nothing_compared(rows, k))
                 for k, d in agree.items()
             ),
         ]
     return "\n".join(lines)
+
+
+def _nothing_compared(rows: list[dict], dtype: str) -> str:
+    """Why a dtype's agreement is empty: the NumPy code, the reference of every comparison, did not
+    run, or none of the runs that would be compared finished healthy."""
+    if not any(r["dtype"] == dtype and r["code"].startswith("NumPy") for r in rows):
+        return "nothing compared (the NumPy code, the reference, was not among --codes)"
+    return "no healthy runs to compare"
 
 
 def write(result: dict, out_dir: str | os.PathLike, overwrite: bool = False) -> list[pathlib.Path]:

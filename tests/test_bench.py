@@ -341,6 +341,25 @@ def test_table_has_a_ratio_row_per_dimension():
     assert "reference codes 2D 1.0e-07" in text
 
 
+def test_table_says_why_nothing_was_compared():
+    """An empty agreement names its reason: without the NumPy code there is no reference (not a
+    breakdown); with it, no healthy pair of runs."""
+    result = dict(
+        date="now",
+        machine="here",
+        versions={},
+        copy_bandwidth_GBps=10.0,
+        rows=[_row("Warp", 0.01), _row("jaxmpm spq", 0.01)],
+        agreement={"f32": {}},
+    )
+    text = bench.table(result)
+    assert "f32: nothing compared (the NumPy code, the reference, was not among --codes)" in text
+    assert "healthy" not in text
+    broken = dict(_row("NumPy", float("nan")), status=3)
+    text = bench.table(dict(result, rows=[*result["rows"], broken]))
+    assert "f32: no healthy runs to compare" in text
+
+
 def _row(code, run_s, n=1000, dim=1, steps=10):
     return dict(
         code=code,
