@@ -173,6 +173,45 @@ def test_bad_input_exits_nonzero_with_one_line(capsys, argv, match):
     assert "Traceback" not in captured.err and captured.out == ""
 
 
+@pytest.mark.parametrize(
+    "argv, hint",
+    [
+        (
+            ["run", "gas-expansion", "--interpolator", "spq", "steps=125", "--dt", "1e-5"],
+            "(steps is an option of the command: --steps 125)",
+        ),
+        (
+            ["run", "gas-expansion", "artificial-cells=1", "--interpolator", "mpq"],
+            "(artificial-cells is an option of the command: --artificial-cells 1)",
+        ),
+        (
+            ["ensemble", "gas-expansion", "--members", "2", "dt=1e-5"],
+            "(dt is an option of the command: --dt 1e-5)",
+        ),
+        (
+            ["calibrate", "gas-slab", "--data", "x.csv", "iterations=9"],
+            "(iterations is an option of the command: --iterations 9)",
+        ),
+    ],
+)
+def test_an_option_written_as_a_scene_parameter_is_named(capsys, argv, hint):
+    """``steps=125`` is refused as a scene parameter with the option it looks like spelled out."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("jaxmpm: error: unknown parameter") and len(err.splitlines()) == 1
+    assert err.endswith(hint)
+
+
+def test_a_positional_name_as_a_scene_parameter_gets_no_option_hint(capsys):
+    assert main(["run", "gas-expansion", "--interpolator", "spq", "scene=1"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown parameter 'scene'" in err and "is an option" not in err
+    # calibrate has no --max-steps: no hint
+    assert main(["calibrate", "gas-slab", "--data", "x.csv", "max_steps=9"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown parameter 'max_steps'" in err and "is an option" not in err
+
+
 def test_breakdown_exits_nonzero_and_names_step_particle_quantity(capsys):
     assert main(["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-3", "--steps", "5"]) == 3
     err = capsys.readouterr().err.strip().splitlines()

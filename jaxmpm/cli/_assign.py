@@ -60,13 +60,16 @@ ALIASES = {"detonation": {"smooth": "smooth_burn"}}
 from its front."""
 
 
-def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
+def scene(name: str, items: Sequence[str], options: Iterable[str] = ()) -> jm.AbstractScene:
     """The scene ``name`` with the parameters ``items`` (``name=value``), each read as the type of its
     default: a string, a boolean (``true``/``false``, ``1``/``0``), an integer or a finite number.
 
     Args:
         name: a scene name (a key of ``jaxmpm.SCENES``).
         items: its parameters, e.g. ``["beta=400", "full=true"]``.
+        options: the command's own options (argparse's names, e.g. ``steps`` for ``--steps``): an
+            unknown parameter that is one of them is refused with the option spelled out
+            (``steps=125`` is ``--steps 125``).
 
     Returns:
         The scene.
@@ -84,7 +87,12 @@ def scene(name: str, items: Sequence[str]) -> jm.AbstractScene:
     for given, raw in split(items, "scene parameters are name=value"):
         key = aliases.get(given, given)
         if key not in defaults:
-            raise UsageError(f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}")
+            hint = ""
+            if given.replace("-", "_") in set(options):
+                hint = f" ({given} is an option of the command: --{given.replace('_', '-')} {raw})"
+            raise UsageError(
+                f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}{hint}"
+            )
         if key in kwargs:  # the same parameter under another of its names
             raise UsageError(f"{key} is given twice: {spelled[key]!r} and {given + '=' + raw!r}")
         kwargs[key], spelled[key] = _typed(given, raw, defaults[key]), f"{given}={raw}"

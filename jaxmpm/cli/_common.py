@@ -197,6 +197,20 @@ def _det(F) -> float:
     )
 
 
+def flags(args: argparse.Namespace) -> set[str]:
+    """The names of a command's options (``steps`` for ``--steps``), without its positional arguments
+    and the parser's own entries: what a ``name=value`` item that is not a scene parameter may have
+    meant.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The option names, with ``_`` where the option has ``-``.
+    """
+    return set(vars(args)) - {"command", "handler", "scene", "params"}
+
+
 def writable_folder(folder, option: str) -> pathlib.Path:
     """A folder to write into, made if missing, checked before any work is done.
 

@@ -15,7 +15,7 @@ from jaxmpm.scenes.gas_slab import pad_for
 from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
-from ._common import UsageError, add_process_options, devices_option, print_json, start_processes
+from ._common import UsageError, add_process_options, devices_option, flags, print_json, start_processes
 
 SCENES = ("gas-slab", "gurney-slab")
 """The scenes ``calibrate`` fits: the gas slab's free surface ``t,x_free``, the Gurney slab's plate
@@ -301,7 +301,7 @@ def command(args) -> int:
             f"the scene must be one of {', '.join(SCENES)}, got {args.scene}"
         )
     first = start_processes(args)
-    scene = _assign.scene(args.scene, args.params)
+    scene = _assign.scene(args.scene, args.params, options=flags(args))
     column = jm.calibrate.observable(scene)
     names = fit_names(scene, args.fit)
     starts = [_assign.numbers(text, "--start") for text in args.start] if args.start else [{}]

@@ -17,7 +17,7 @@ from jaxmpm.scenes.gas_slab import pad_for
 from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
-from ._common import UsageError, print_json
+from ._common import UsageError, flags, print_json
 
 _MOST_STEPS = 2**31 - 1  # the bound of a step counter
 
@@ -83,7 +83,7 @@ def command(args) -> int:
     Raises:
         UsageError: bad input.
     """
-    scene = _assign.scene(args.scene, args.params)
+    scene = _assign.scene(args.scene, args.params, options=flags(args))
     varying = list(variable_parameters(scene))
     for k in _assign.names(args.vary or []):
         if k in static_parameters(scene):

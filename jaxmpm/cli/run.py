@@ -23,6 +23,7 @@ from ._common import (
     UsageError,
     add_process_options,
     devices_option,
+    flags,
     floats,
     local_solution,
     print_json,
@@ -121,7 +122,7 @@ def command(args) -> int:
         Breakdown: the run broke down (after writing the frames of ``--vtk`` up to it).
     """
     first = start_processes(args)
-    scene = _assign.scene(args.scene, args.params)
+    scene = _assign.scene(args.scene, args.params, options=flags(args))
     if args.cfl_limit.lower() == "none":
         cfl = None
     else:
