@@ -88,9 +88,14 @@ def check_parts(scene, interpolator, transfer, viscosity) -> None:
     check_scene(scene)
     check_interpolator(interpolator)
     if not isinstance(transfer, AbstractTransfer):
+        hint = (
+            f": pass {_made_by(TRANSFERS[transfer])}"
+            if isinstance(transfer, str) and transfer in TRANSFERS
+            else ""
+        )
         raise ValueError(
             f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got "
-            f"{brief(transfer)}{_class_hint(transfer, AbstractTransfer)}"
+            f"{brief(transfer)}{hint or _class_hint(transfer, AbstractTransfer)}"
         )
 
 
@@ -166,8 +171,8 @@ def check_interpolator(interpolator) -> None:
 
 
 def _made_by(make) -> str:
-    """How a user writes the interpolator a registry entry makes: ``jm.MPQ()``,
-    ``jm.GIMP(contiguous=True)``."""
+    """How a user writes the interpolator or transfer a registry entry makes: ``jm.MPQ()``,
+    ``jm.GIMP(contiguous=True)``, ``jm.FLIP()``."""
     if isinstance(make, functools.partial):
         options = ", ".join(f"{k}={v!r}" for k, v in make.keywords.items())
         return f"jm.{make.func.__name__}({options})"

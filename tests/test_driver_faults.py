@@ -277,6 +277,13 @@ def test_simulate_tells_an_interpolator_or_transfer_class_to_call_it():
         jm.simulate(small(), jm.SPQ(), dt=DT, steps=1, transfer=jm.APIC)
 
 
+def test_simulate_tells_a_transfer_name_the_object_to_pass():
+    with pytest.raises(ValueError, match=r"transfer must be.*got 'flip': pass jm.FLIP\(\)$"):
+        jm.simulate(small(), jm.SPQ(), dt=DT, steps=1, transfer="flip")
+    with pytest.raises(ValueError, match=r"got 'nope'$"):  # not a registry name: no hint
+        jm.simulate(small(), jm.SPQ(), dt=DT, steps=1, transfer="nope")
+
+
 @pytest.mark.parametrize("checkpoint", [None, 0, 1.5, "yes", np.True_])
 def test_simulate_says_what_checkpoint_allows(checkpoint):
     with pytest.raises(
