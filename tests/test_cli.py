@@ -192,6 +192,10 @@ def test_bad_input_exits_nonzero_with_one_line(capsys, argv, match):
             ["calibrate", "gas-slab", "--data", "x.csv", "iterations=9"],
             "(iterations is an option of the command: --iterations 9)",
         ),
+        (
+            ["run", "gas-expansion", "--interpolator", "spq", "json=1"],
+            "(json is an option of the command: --json)",  # a switch: no value
+        ),
     ],
 )
 def test_an_option_written_as_a_scene_parameter_is_named(capsys, argv, hint):

@@ -5,7 +5,7 @@ Every function raises ``UsageError`` with one line naming what was wrong.
 """
 
 import math
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import jaxmpm as jm
 
@@ -60,16 +60,17 @@ ALIASES = {"detonation": {"smooth": "smooth_burn"}}
 from its front."""
 
 
-def scene(name: str, items: Sequence[str], options: Iterable[str] = ()) -> jm.AbstractScene:
+def scene(name: str, items: Sequence[str], options: Mapping[str, bool] | None = None) -> jm.AbstractScene:
     """The scene ``name`` with the parameters ``items`` (``name=value``), each read as the type of its
     default: a string, a boolean (``true``/``false``, ``1``/``0``), an integer or a finite number.
 
     Args:
         name: a scene name (a key of ``jaxmpm.SCENES``).
         items: its parameters, e.g. ``["beta=400", "full=true"]``.
-        options: the command's own options (argparse's names, e.g. ``steps`` for ``--steps``): an
-            unknown parameter that is one of them is refused with the option spelled out
-            (``steps=125`` is ``--steps 125``).
+        options: the command's own options (argparse's names, e.g. ``steps`` for ``--steps``, each
+            with whether it takes a value; ``_common.flags``): an unknown parameter that is one of
+            them is refused with the option spelled out (``steps=125`` is ``--steps 125``,
+            ``json=1`` is ``--json``).
 
     Returns:
         The scene.
@@ -87,9 +88,10 @@ def scene(name: str, items: Sequence[str], options: Iterable[str] = ()) -> jm.Ab
     for given, raw in split(items, "scene parameters are name=value"):
         key = aliases.get(given, given)
         if key not in defaults:
-            hint = ""
-            if given.replace("-", "_") in set(options):
-                hint = f" ({given} is an option of the command: --{given.replace('_', '-')} {raw})"
+            hint, option = "", given.replace("-", "_")
+            if options and option in options:
+                spelled_out = f"--{given.replace('_', '-')}" + (f" {raw}" if options[option] else "")
+                hint = f" ({given} is an option of the command: {spelled_out})"
             raise UsageError(
                 f"unknown parameter {key!r} for scene {name}; allowed: {', '.join(defaults)}{hint}"
             )

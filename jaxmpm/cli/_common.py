@@ -197,7 +197,7 @@ def _det(F) -> float:
     )
 
 
-def flags(args: argparse.Namespace) -> set[str]:
+def flags(args: argparse.Namespace) -> dict[str, bool]:
     """The names of a command's options (``steps`` for ``--steps``), without its positional arguments
     and the parser's own entries: what a ``name=value`` item that is not a scene parameter may have
     meant.
@@ -206,9 +206,11 @@ def flags(args: argparse.Namespace) -> set[str]:
         args: the parsed command line.
 
     Returns:
-        The option names, with ``_`` where the option has ``-``.
+        Each option's name, with ``_`` where the option has ``-``, and whether it takes a value
+        (``False`` for a switch such as ``--json``, whose parsed value is a bool).
     """
-    return set(vars(args)) - {"command", "handler", "scene", "params"}
+    skip = {"command", "handler", "scene", "params"}
+    return {k: not isinstance(v, bool) for k, v in vars(args).items() if k not in skip}
 
 
 def writable_folder(folder, option: str) -> pathlib.Path:
