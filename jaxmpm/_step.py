@@ -88,14 +88,9 @@ def check_parts(scene, interpolator, transfer, viscosity) -> None:
     check_scene(scene)
     check_interpolator(interpolator)
     if not isinstance(transfer, AbstractTransfer):
-        hint = (
-            f": pass {_made_by(TRANSFERS[transfer])}"
-            if isinstance(transfer, str) and transfer in TRANSFERS
-            else ""
-        )
         raise ValueError(
             f"transfer must be a jaxmpm transfer (TRANSFERS: {', '.join(TRANSFERS)}), got "
-            f"{brief(transfer)}{hint or _class_hint(transfer, AbstractTransfer)}"
+            f"{brief(transfer)}{_object_hint(transfer, TRANSFERS, AbstractTransfer)}"
         )
 
 
@@ -147,6 +142,14 @@ def _class_hint(value, base: type) -> str:
     return ""
 
 
+def _object_hint(value, registry: dict, base: type) -> str:
+    """``": pass jm.MPQ()"`` for a name of ``registry`` and ``_class_hint``'s hint for a subclass of
+    ``base``, given where the object is needed ("" for anything else)."""
+    if isinstance(value, str) and value in registry:
+        return f": pass {_made_by(registry[value])}"
+    return _class_hint(value, base)
+
+
 def check_interpolator(interpolator) -> None:
     """Check that ``interpolator`` is a jaxmpm interpolator (an object, not its class nor a registry
     name).
@@ -160,13 +163,10 @@ def check_interpolator(interpolator) -> None:
     """
     if isinstance(interpolator, AbstractInterpolator):
         return
-    hint = ""
-    if isinstance(interpolator, str) and interpolator in INTERPOLATORS:
-        hint = f": pass {_made_by(INTERPOLATORS[interpolator])}"
-    hint = hint or _class_hint(interpolator, AbstractInterpolator)
     raise ValueError(
         "interpolator must be a jaxmpm interpolator such as jm.CPDI() "
-        f"(INTERPOLATORS: {', '.join(INTERPOLATORS)}), got {brief(interpolator)}{hint}"
+        f"(INTERPOLATORS: {', '.join(INTERPOLATORS)}), got {brief(interpolator)}"
+        f"{_object_hint(interpolator, INTERPOLATORS, AbstractInterpolator)}"
     )
 
 
