@@ -3,8 +3,13 @@
 A pytest plugin and the report of what it logged. Run the suite (or part of it) with the plugin,
 then read the report::
 
-    PYTHONPATH=experiments python -m pytest -q -p suite_time --suite-time-log /tmp/suite_time
+    PYTHONPATH=experiments python -m pytest -q -p suite_time --suite-time-log=/tmp/suite_time
     python experiments/suite_time.py /tmp/suite_time
+
+Write the option with ``=``. Written apart (``--suite-time-log /tmp/suite_time``), a folder that
+already exists is also a path among pytest's arguments. pytest then takes it for the root of the
+tests, and the suite's settings in ``pyproject.toml`` are not read: no workers, no markers and no
+jaxtyping checks. The plugin refuses to log such a run (``check_settings_read``).
 
 Each process that runs tests (each pytest-xdist worker, or pytest itself without workers) writes
 ``<log>/<worker>.jsonl``: one line per test with its wall time, and one per compilation event JAX
@@ -106,10 +111,34 @@ def _log_programs(log: _Log) -> None:
     _simulate._run_scan_jit = Logged()
 
 
+def check_settings_read(folder: str, inipath: Path | None, rootpath: Path) -> None:
+    """Refuse a run whose timings would not be the suite's: one where pytest found no configuration
+    file, so that the suite's settings (``-n auto``, its markers, the jaxtyping checks) are not in
+    effect. It happens when an existing log folder is written apart from its option, and so taken as
+    a test path.
+
+    Args:
+        folder: the ``--suite-time-log`` folder.
+        inipath: the configuration file pytest read (``config.inipath``), or ``None``.
+        rootpath: pytest's root folder (``config.rootpath``).
+
+    Raises:
+        pytest.UsageError: no configuration file was read.
+    """
+    if inipath is None:
+        raise pytest.UsageError(
+            f"--suite-time-log: pytest read no configuration file (rootdir {rootpath}), so the suite's "
+            f"settings (-n auto, its markers, the jaxtyping checks) are not in effect and the times "
+            f"would not be the suite's; an existing folder written apart from its option is taken for "
+            f"a test path: write --suite-time-log={folder}, from the repository's root"
+        )
+
+
 def pytest_configure(config):
     folder = config.getoption("--suite-time-log")
     if folder is None:
         return
+    check_settings_read(folder, config.inipath, config.rootpath)
     import jax
 
     log = _Log(Path(folder))
@@ -149,7 +178,7 @@ def load(folder: Path) -> dict[str, list[tuple[str, str, str, float]]]:
     """The rows each worker logged, by worker name."""
     files = sorted(folder.glob("*.jsonl"))
     if not files:
-        raise SystemExit(f"no *.jsonl in {folder}: run pytest with -p suite_time --suite-time-log {folder}")
+        raise SystemExit(f"no *.jsonl in {folder}: run pytest with -p suite_time --suite-time-log={folder}")
     return {f.stem: [tuple(json.loads(line)) for line in f.read_text().splitlines()] for f in files}
 
 

@@ -80,3 +80,14 @@ def test_the_plugin_logs_each_whole_run_with_its_program(monkeypatch):
     assert keys[0] == keys[1]  # the same run: the same program
     assert keys[2] != keys[0] and keys[2].rsplit("|", 1)[0] == keys[0].rsplit("|", 1)[0]  # steps only
     assert keys[3].rsplit("|", 1)[0] != keys[0].rsplit("|", 1)[0]  # another size, another program
+
+
+def test_the_plugin_refuses_a_run_without_the_suites_settings(tmp_path):
+    import pytest
+
+    from experiments.suite_time import check_settings_read
+
+    # `--suite-time-log DIR` with DIR existing: pytest took DIR for the root and read no pyproject.toml
+    with pytest.raises(pytest.UsageError, match=f"write --suite-time-log={tmp_path}"):
+        check_settings_read(str(tmp_path), None, tmp_path)
+    check_settings_read(str(tmp_path), tmp_path / "pyproject.toml", tmp_path)  # settings read: logged
