@@ -1,8 +1,12 @@
-"""experiments/suite_time.py: the report of where the suite's time goes adds up what it logged."""
+"""experiments/suite_time.py: the report adds up what the plugin logged, and the plugin logs only runs
+with the suite's settings."""
 
 import json
+import re
 
-from experiments.suite_time import load, report
+import pytest
+
+from experiments.suite_time import check_settings_read, load, report
 
 
 def test_report_sums_per_file_test_function_and_compiled_function(tmp_path):
@@ -83,11 +87,7 @@ def test_the_plugin_logs_each_whole_run_with_its_program(monkeypatch):
 
 
 def test_the_plugin_refuses_a_run_without_the_suites_settings(tmp_path):
-    import pytest
-
-    from experiments.suite_time import check_settings_read
-
     # `--suite-time-log DIR` with DIR existing: pytest took DIR for the root and read no pyproject.toml
-    with pytest.raises(pytest.UsageError, match=f"write --suite-time-log={tmp_path}"):
+    with pytest.raises(pytest.UsageError, match=re.escape(f"write --suite-time-log={tmp_path}")):
         check_settings_read(str(tmp_path), None, tmp_path)
     check_settings_read(str(tmp_path), tmp_path / "pyproject.toml", tmp_path)  # settings read: logged
