@@ -127,6 +127,24 @@ class SlabSolution(eqx.Module):
         return jax.vmap(lambda F: jnp.interp(X, self.X, F))(self.F)
 
 
+def _slab_rhs(tau, y, args):
+    """The slab's semi-discrete equations in scaled unknowns, each O(1): ``F``, ``v / c0`` and
+    ``(x_R - L) / L``, in time units of ``L / c0``. A function of the module, the parameters in
+    ``args``: every solve of the same sizes reuses one compiled program."""
+    del tau
+    c0, P0, gamma, p_atm, rho0, dX, L = args
+    F, w, _ = y
+    v = w * c0
+    sigma = -(P0 * F ** (-gamma) - p_atm)
+    v_full = jnp.concatenate([jnp.zeros((1,), v.dtype), v])
+    dF = (v_full[1:] - v_full[:-1]) / dX
+    dv_int = (sigma[1:] - sigma[:-1]) / (rho0 * dX)
+    dv_end = -2.0 * sigma[-1:] / (rho0 * dX)
+    dv = jnp.concatenate([dv_int, dv_end])
+    scale = L / c0
+    return dF * scale, dv * scale / c0, v[-1] / c0
+
+
 def gas_slab(
     scene,
     ts,
@@ -168,29 +186,16 @@ def gas_slab(
     P0, gamma, p_atm, rho0 = scene.P0, scene.gamma, scene.p_atm, scene.rho0
     c0 = jnp.sqrt(gamma * P0 / rho0)
 
-    # Scaled unknowns, each O(1): F, v / c0, (x_R - L) / L, time in units of L / c0.
-    def rhs(tau, y, args):
-        del tau, args
-        F, w, _ = y
-        v = w * c0
-        sigma = -(P0 * F ** (-gamma) - p_atm)
-        v_full = jnp.concatenate([jnp.zeros((1,), v.dtype), v])
-        dF = (v_full[1:] - v_full[:-1]) / dX
-        dv_int = (sigma[1:] - sigma[:-1]) / (rho0 * dX)
-        dv_end = -2.0 * sigma[-1:] / (rho0 * dX)
-        dv = jnp.concatenate([dv_int, dv_end])
-        scale = L / c0
-        return dF * scale, dv * scale / c0, v[-1] / c0
-
     y0 = (jnp.ones(cells, ts.dtype), jnp.zeros(cells, ts.dtype), jnp.zeros((), ts.dtype))
     tau = ts * c0 / L
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(rhs),
+        diffrax.ODETerm(_slab_rhs),
         diffrax.Tsit5(),
         t0=jnp.zeros((), ts.dtype),
         t1=tau[-1],
         dt0=None,
         y0=y0,
+        args=(c0, P0, gamma, p_atm, rho0, dX, L),
         saveat=diffrax.SaveAt(ts=tau),
         stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol),
         max_steps=max_steps,

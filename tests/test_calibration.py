@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import BACKEND_COMPILE, TRACE, monitored
 
 import jaxmpm as jm
 from jaxmpm import calibrate as cal
@@ -34,6 +35,18 @@ def synthetic():
     dt = _dt(sc)
     x = np.asarray(cal.trajectory(sc, jm.CPDI(), TS, dt=dt))
     return sc, dt, x
+
+
+def test_gas_slab_reference_compiles_once_for_new_parameter_values():
+    """The reference's solve is compiled once per size (cells, number of times): a slab of other
+    constants and another length reuses it, nothing traced or compiled again."""
+    ts = [0.0, 1e-3, 2e-3, 3e-3, 4e-3]
+    first = reference.gas_slab(jm.GasSlab(), ts, cells=23)
+    with monitored(TRACE, BACKEND_COMPILE) as events:
+        other = reference.gas_slab(jm.GasSlab(P0=4e5, gamma=1.3, p_atm=0.9e5, rho0=1.2, h=0.05), ts, cells=23)
+    assert events == []
+    assert np.all(np.asarray(other.x_free)[1:] != np.asarray(first.x_free)[1:])
+    assert float(other.X[-1]) == pytest.approx(0.5 * (2 * 23 - 1) / 23 * float(jm.GasSlab(h=0.05).length))
 
 
 def test_gas_slab_scene_and_its_reference_agree():
