@@ -9,6 +9,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._checks import check_bool, check_int, python_bool, python_int
+from .._util import materialise
 from ..shapes import hat, hat_integral
 from ._base import AbstractInterpolator, Stencil
 from ._transfer import multiplicative_F_update, tensor
@@ -94,6 +95,10 @@ class GIMP(AbstractInterpolator):
     def stencil(self, grid, r0, x, F, corners, gradients=True):
         del corners
         parts, oks = zip(*[self._axis(grid, r0, x, F, a, gradients) for a in range(x.shape[1])])
+        if x.shape[1] > 1 and gradients:
+            # Each axis's weights written once: fused into the tensor product, XLA's CPU backend
+            # redoes an axis's piecewise-quadratic weights for every node and component of it.
+            parts = [(i, materialise(w), None if dw is None else materialise(dw)) for i, w, dw in parts]
         idx, w, dw = tensor(grid, list(parts), gradients)
         ok = functools.reduce(operator.and_, oks)
         if not gradients:
