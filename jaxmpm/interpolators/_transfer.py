@@ -332,12 +332,9 @@ def tracked_corner_update(
     cidx, s, _ = points_stencil(grid, corners, gradients=False)
     if grid.dim == 2:
         # The corners' node indices written once (as ``jaxmpm._step._materialised`` does for the
-        # particles' stencil): otherwise XLA's CPU backend fuses their computation into the gather and
-        # redoes it for every component of every read. 2D MPQ at 102,400 particles, float32, the two
-        # programs alternating in one process: the fusion that moves the corners 0.64 against 2.38 ms
-        # a step (jax.profiler), the whole step 0.86-1.09x the time over ten such runs (0.93x on
-        # average), the same bits. In 3D it gained nothing (32,768 particles: 11.94 against 11.85 ms a
-        # step), and 3D keeps the fused form.
+        # particles' stencil): fused into the gather, XLA's CPU backend redoes their computation for
+        # every component of every read. In 3D the copy saves nothing, and the fused form stays.
+        # Measured in the Performance page of the docs.
         cidx = materialise(cidx)
     v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new, cidx[:, :1] if grid.dim == 1 else None))
     corners = corners + dt * v_c
