@@ -176,7 +176,7 @@ def test_manufactured_field_that_starts_deformed():
 def test_second_order_in_displacement(scene_kind):
     """Must-show: order >= 1.8 in x for at least one interpolator. On the small-amplitude neo-Hookean
     (walls at both ends) CPDI and MPQ both reach 2.0 at CFL 0.5. On the vibrating bar (a free end)
-    CPDI does at CFL 0.1; at CFL 0.5 its time error takes over from 128 cells (see the README)."""
+    CPDI does at CFL 0.1; at CFL 0.5 its time error takes over from 128 cells (docs/verification.md)."""
     interps = (jm.CPDI(),) if scene_kind == "vibrating-bar" else (jm.CPDI(), jm.MPQ())
     for interp in interps:
         errs = []
