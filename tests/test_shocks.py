@@ -2,6 +2,8 @@
 solutions (``jaxmpm.exact_euler``), and energy conservation between walls."""
 
 import functools
+import json
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -202,3 +204,22 @@ def test_copper_plates_meet_on_their_hugoniot():
         rho = np.asarray(jm.density(sol.state, sol.body))[near]
         assert abs(p.mean() / (rho0 * us * up) - 1) < 5e-3  # measured 0.03% (CPDI), 0.005% (MPQ)
         assert abs(rho.mean() / (rho0 * us / (us - up)) - 1) < 1e-3
+
+
+def test_readme_quotes_the_sod_orders_the_study_wrote():
+    """The README's table of Sod's density orders is the one `jaxmpm study convergence` wrote to
+    docs/convergence/shocks.json (rounded to two places; a method that broke down says so)."""
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / "README.md").read_text().splitlines()
+    start = readme.index("| SPQ | uGIMP | cpGIMP | CPDI | MPQ |")
+    methods = [c.strip() for c in readme[start].strip("|").split("|")]
+    quoted = [c.strip() for c in readme[start + 2].strip("|").split("|")]
+    saved = json.loads((root / "docs" / "convergence" / "shocks.json").read_text())
+    sod = {o["method"]: o for o in saved["orders"] if o["scene"] == "shock-tube (Sod)"}
+    assert len(quoted) == len(methods) == 5
+    for method, cell in zip(methods, quoted):
+        order = sod[method]
+        if order["failures"]:
+            assert order.get("rho_L1_order") is None and cell.startswith("breaks down")
+        else:
+            assert cell == f"{order['rho_L1_order']:.2f}", (method, cell, order["rho_L1_order"])
