@@ -1,0 +1,163 @@
+"""Hashes of final states and derivatives over a matrix of float64 runs: does a change to the step move
+any result, even in the last bit?
+
+A run without ``devices`` stays bit for bit what it is, so a change made for speed is kept only if
+every hash is unchanged. Hash the code as it is, make the change, hash again and compare:
+
+    python experiments/state_hashes.py --out /tmp/before.json
+    python experiments/state_hashes.py --out /tmp/after.json --compare /tmp/before.json
+
+The matrix (198 runs, 5-10 minutes on 2 cores):
+
+- the gas expansion in 1D, 2D and 3D with every interpolator and transfer, with and without an
+  artificial cell, USL (and MUSL for FLIP with the artificial cell), 15 steps;
+- in 2D and 3D, every interpolator with the nodal volume average (``volume_average="node"``);
+- for every interpolator and dimension, the derivative in ``beta`` of a scalar of the final state,
+  reverse mode (``jax.grad``) and forward mode (``jax.jacfwd``);
+- six other scenes (the blast disk, the axis-aligned scene, Sod's shock tube, Noh's problem, the
+  detonation and the Gurney slab) with SPQ, GIMP, CPDI and MPQ, CFL-limited steps to ``t_end = 1e-4``
+  within at most 40 steps (the detonation and the slab stop at that limit, SPQ and MPQ break down in
+  the blast disk: both are hashed as they return).
+
+Each line gives a run's key, the first 16 hex digits of the sha1 of every array of its final state
+(or of the derivative), and the run's status: a run that breaks down or stops at its step limit is
+hashed as what it returns (its last good state), so a change to where it stops shows too. With
+``--compare`` the script lists the runs whose hash differs and exits with status 1 if any does.
+
+Hashes depend on the CPU and on the versions of JAX and XLA: compare two files made on one machine
+with one environment, never with a file made elsewhere.
+"""
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+
+import jax
+import numpy as np
+
+
+def _hash(tree) -> str:
+    h = hashlib.sha1()
+    for leaf in jax.tree.leaves(tree):
+        if isinstance(leaf, jax.Array | np.ndarray):
+            h.update(np.asarray(leaf).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _runs():
+    """Yield ``(key, thunk)`` for every run of the matrix; a thunk returns ``(tree, status)``."""
+    import jax.numpy as jnp
+
+    import jaxmpm as jm
+
+    def scene(dim, beta=None):
+        if dim == 1:
+            return jm.GasExpansion(beta=200.0 if beta is None else beta, cells=8, h=0.125, pad=10)
+        return jm.GasExpansion(beta=5.0 if beta is None else beta, cells=6, h=1 / 6, pad=4, dim=dim)
+
+    def dt(dim):
+        return 2e-5 if dim == 1 else 1e-4
+
+    def state(sol):
+        return sol.state, int(sol.state.status)
+
+    for dim in (1, 2, 3):
+        for name, make in jm.INTERPOLATORS.items():
+            for transfer, make_transfer in jm.TRANSFERS.items():
+                for cells in (0, 1):
+                    for order in ("usl", "musl") if transfer == "flip" and cells == 1 else ("usl",):
+                        yield (
+                            f"{dim}D {name} {transfer} artificial_cells={cells} {order}",
+                            lambda dim=dim, make=make, t=make_transfer, c=cells, o=order: state(
+                                jm.simulate(
+                                    scene(dim),
+                                    make(),
+                                    dt=dt(dim),
+                                    steps=15,
+                                    transfer=t(),
+                                    artificial_cells=c,
+                                    ordering=o,
+                                    throw=False,
+                                )
+                            ),
+                        )
+            if dim > 1:
+                yield (
+                    f"{dim}D {name} volume_average=node",
+                    lambda dim=dim, make=make: state(
+                        jm.simulate(
+                            scene(dim), make(), dt=dt(dim), steps=15, volume_average="node", throw=False
+                        )
+                    ),
+                )
+            for mode, derivative in (("reverse", jax.grad), ("forward", jax.jacfwd)):
+
+                def f(beta, dim=dim, make=make):
+                    sol = jm.simulate(
+                        scene(dim, beta), make(), dt=dt(dim), steps=10, artificial_cells=1, throw=False
+                    )
+                    return jnp.mean(sol.state.F) + jnp.mean(sol.state.x**2)
+
+                yield (
+                    f"{dim}D {name} d/dbeta {mode} mode",
+                    lambda derivative=derivative, f=f, dim=dim: (
+                        derivative(f)(jnp.asarray(200.0 if dim == 1 else 5.0)),
+                        0,
+                    ),
+                )
+    for name in ("blast-disk", "axis-aligned", "shock-tube", "noh", "detonation", "gurney-slab"):
+        for interpolator in ("spq", "gimp", "cpdi", "mpq"):
+            yield (
+                f"{name} {interpolator}",
+                lambda name=name, i=interpolator: state(
+                    jm.simulate(
+                        jm.SCENES[name](),
+                        jm.INTERPOLATORS[i](),
+                        t_end=1e-4,
+                        max_steps=40,
+                        throw=False,
+                    )
+                ),
+            )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", required=True, help="the JSON file to write the hashes to")
+    parser.add_argument("--compare", help="a JSON file of an earlier run of this script to compare with")
+    args = parser.parse_args()
+    if os.path.exists(args.out):
+        parser.error(f"--out {args.out} exists; give a new file (the script never writes over one)")
+    earlier = None
+    if args.compare:
+        with open(args.compare) as f:
+            earlier = json.load(f)
+    jax.config.update("jax_enable_x64", True)
+
+    hashes = {}
+    for key, run in _runs():
+        tree, status = run()
+        hashes[key] = _hash(tree)
+        jax.clear_caches()  # each compiled program holds memory maps; a process may hold only so many
+        print(f"{key}: {hashes[key]} (status {status})", flush=True)
+    with open(args.out, "x") as f:
+        json.dump(hashes, f, indent=1)
+    if earlier is None:
+        return 0
+    differ = [k for k in hashes if earlier.get(k) != hashes[k]]
+    missing = [k for k in earlier if k not in hashes]
+    print(
+        f"{len(hashes)} runs, {len(differ)} differ from {args.compare}"
+        + (f", {len(missing)} missing" if missing else "")
+    )
+    for k in differ:
+        print(f"  differs: {k}")
+    for k in missing:
+        print(f"  not run here: {k}")
+    return 1 if differ or missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
