@@ -43,7 +43,7 @@ def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[s
         scene: a scene or a scene class.
 
     Returns:
-        The scene's float parameters and ``dt``.
+        The scene's float parameters but the static ones (``static_parameters``), and ``dt``.
 
     Raises:
         ValueError: ``scene`` is neither a jaxmpm scene nor a scene class (a registry name such as
@@ -59,7 +59,18 @@ def continuous_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[s
             f"(SCENES: {', '.join(SCENES)}), got {brief(scene)}{hint}"
         )
     cls = scene if isinstance(scene, type) else type(scene)
-    return tuple(k for k, v in cls.parameters().items() if isinstance(v, float)) + ("dt",)
+    static = _static_fields(cls)
+    return tuple(k for k in _float_parameters(cls) if k not in static) + ("dt",)
+
+
+def _float_parameters(cls: type[AbstractScene]) -> tuple[str, ...]:
+    """The scene class's float parameters, in its order."""
+    return tuple(k for k, v in cls.parameters().items() if isinstance(v, float))
+
+
+def _static_fields(cls: type[AbstractScene]) -> set[str]:
+    """The names of the scene class's static fields."""
+    return {f.name for f in dataclasses.fields(cls) if f.metadata.get("static", False)}
 
 
 def static_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
@@ -74,9 +85,10 @@ def static_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, 
     Returns:
         The names, in the scene's order (empty for most scenes).
     """
+    continuous_parameters(scene)  # refuses what is not a scene
     cls = scene if isinstance(scene, type) else type(scene)
-    static = {f.name for f in dataclasses.fields(cls) if f.metadata.get("static", False)}
-    return tuple(n for n in continuous_parameters(cls) if n in static)
+    static = _static_fields(cls)
+    return tuple(n for n in _float_parameters(cls) if n in static)
 
 
 def check_names(scene: AbstractScene, names) -> None:
@@ -96,7 +108,7 @@ def check_names(scene: AbstractScene, names) -> None:
     if not isinstance(names, Iterable):
         raise ValueError(f"names must be a sequence of parameter names such as ['beta'], got {brief(names)}")
     static = static_parameters(scene)
-    allowed = tuple(n for n in continuous_parameters(scene) if n not in static)
+    allowed = continuous_parameters(scene)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
     for name in names:
         if name in static:

@@ -261,6 +261,27 @@ def test_continuous_parameters_takes_a_scene_or_its_class():
     assert jm.continuous_parameters(jm.GasExpansion) == jm.continuous_parameters(small())
 
 
+@pytest.mark.parametrize("name", list(jm.SCENES))
+def test_continuous_parameters_are_the_names_a_gradient_takes(name):
+    """Every name ``continuous_parameters`` gives is one ``gradient`` takes: the static float
+    parameters (the shock tube's ``x0``, the Gurney scenes' ``split``) are left out."""
+    scene = jm.SCENES[name]()
+    names = jm.continuous_parameters(scene)
+    jm.sensitivity.check_names(scene, names)  # raises for a name gradient refuses
+    static = jm.sensitivity.static_parameters(scene)
+    assert not set(static) & set(names)
+    floats = [k for k, v in type(scene).parameters().items() if isinstance(v, float)]
+    assert sorted(names) == sorted([k for k in floats if k not in static] + ["dt"])
+
+
+def test_static_parameters_are_left_out_of_the_continuous_ones():
+    assert "x0" not in jm.continuous_parameters(jm.ShockTube)
+    assert jm.sensitivity.static_parameters(jm.ShockTube) == ("x0",)
+    assert "split" not in jm.continuous_parameters(jm.GurneySlab())
+    with pytest.raises(ValueError, match="x0 is static in shock-tube"):
+        jm.sensitivity.check_names(jm.ShockTube(), ["x0"])
+
+
 # messages that name what was given wrong -------------------------------------------------------------
 
 
