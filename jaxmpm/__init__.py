@@ -4,7 +4,8 @@ The library never enables float64 on import; call ``jax.config.update("jax_enabl
 first (the CLI, experiments, notebooks and tests do).
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _version
 
 from . import exact as exact
 from . import exact_detonation as exact_detonation
@@ -130,8 +131,9 @@ from .transfers import TRANSFERS as TRANSFERS
 from .transfers import AbstractTransfer as AbstractTransfer
 from .viscosity import ArtificialViscosity as ArtificialViscosity
 
-_LAZY = ("calibrate", "reference")
-"""Submodules imported on first use: they bring optax and diffrax, which a run does not need."""
+_LAZY = ("calibrate", "plotting", "reference")
+"""Submodules imported on first use: they bring optax, diffrax and matplotlib, which a run does not
+need."""
 
 
 def __getattr__(name: str):
@@ -143,10 +145,10 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted(list(globals()) + list(_LAZY))
+    return sorted(set(globals()) | set(_LAZY))
 
 
 try:
-    __version__ = version("jaxmpm")
-except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = _version("jaxmpm")
+except _PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"

@@ -36,3 +36,14 @@ def test_importing_jaxmpm_leaves_global_configuration_alone():
     n, same, *states = out.stdout.split(" ", 2)
     assert int(n) >= 30  # every module of the package was imported
     assert same == "True", states
+
+
+def test_lazy_submodules_are_attributes_of_the_package():
+    """``jm.calibrate``, ``jm.plotting`` and ``jm.reference`` are imported on first use (they bring
+    optax, diffrax and matplotlib), and each appears once in ``dir(jm)``."""
+    import jaxmpm as jm
+
+    for name in ("calibrate", "plotting", "reference"):
+        assert getattr(jm, name).__name__ == f"jaxmpm.{name}"
+        assert dir(jm).count(name) == 1
+    assert "version" not in dir(jm) and "PackageNotFoundError" not in dir(jm)
