@@ -625,7 +625,8 @@ def simulate(
         scene: the scene and its parameters.
         interpolator: ``SPQ()``, ``GIMP()``, ``GIMP(contiguous=True)``, ``CPDI()``, ``MPQ()``, ... (one of
             ``INTERPOLATORS``).
-        dt: time step (> 0), with ``steps``, the number of steps (>= 0).
+        dt: time step (> 0), with ``steps``.
+        steps: the number of steps of ``dt`` (>= 0), static: a new count compiles a new run.
         t_end: instead of ``dt`` and ``steps``, run to this time with the CFL-limited step
             ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (``cfl``: default, or ``None``,
             0.5) in a scan of ``max_steps`` steps (required), the steps after ``t_end`` masked. A run
@@ -633,6 +634,8 @@ def simulate(
             Differentiable in ``t_end``, ``cfl`` and the scene's parameters (the step count is
             piecewise constant in them). ``cfl`` and ``max_steps`` belong to such a run alone: a run
             of fixed steps (``dt``, ``steps``) refuses them.
+        cfl: with ``t_end``, the CFL number of each step (> 0; ``None``: 0.5).
+        max_steps: with ``t_end``, the length of the scan (>= 1), static.
         transfer: ``FLIP()`` (default), ``PIC()`` or ``APIC()``.
         artificial_cells: layers of artificial cells at each free end (``jaxmpm.boundaries``).
         saveat: what to keep besides the final state (default: nothing). With ``t_end``, the saved
@@ -647,6 +650,9 @@ def simulate(
         viscosity: ``ArtificialViscosity()`` to damp the ringing behind shocks; ``None`` (default).
         volume_average: ``None`` (default), ``"cell"`` or ``"node"``: the stress at the volume-averaged
             ``F`` (J-bar, ``jaxmpm.Model``).
+        devices: ``None`` (default: one device), a count ``k`` (the first ``k`` of ``jax.devices()``)
+            or a sequence of devices: the particles are sharded over them, the grid replicated and
+            its sums added across them each step. Equal to the run on one device to round-off.
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
 
     Returns:

@@ -864,7 +864,9 @@ def step(
     active: Bool[Array, ""] | None = None,
     t_new: Float[Array, ""] | None = None,
 ) -> State:
-    """One USL (or MUSL) step (see the module's docstring).
+    """One update-stress-last step (USL, or MUSL with ``model.ordering="musl"``): the particles'
+    mass and momentum to the grid, the nodal forces, the grid update with the boundary conditions,
+    then the particles' positions and velocities, their ``F`` and their stresses.
 
     A step that fails a check is not taken: the state stays, its status records it. The step is
     compiled (``equinox.filter_jit``) once per model structure and array shapes, so a Python loop of

@@ -1,13 +1,19 @@
-"""Calibration of the gas's constants from a free-surface trajectory, with their uncertainty.
+"""Calibration of constants from a measured trajectory, with their uncertainty.
 
 The cylinder test calibrates an explosive product's equation of state by fitting a measured wall
-trajectory; here the gas slab's free surface ``x_R(t)`` plays that part. Given observations
-``(t_i, x_i)``, ``calibrate`` fits named continuous parameters of a scene (``gamma``, ``P0``,
-optionally ``rho0`` or ``p_atm``) by least squares,
+trajectory. Here two scenes play that part (``observable``):
 
-    loss = mean_i (r_i / L)^2,        r_i = x_R(t_i; params) - x_i,
+- the gas slab (``GasSlab``): its free surface ``x_R(t)``. Given observations ``(t_i, x_i)``,
+  ``calibrate`` fits named continuous parameters of the scene (``gamma``, ``P0``, optionally
+  ``rho0`` or ``p_atm``) by least squares,
 
-with ``x_R`` from a jaxmpm run (its saved history, interpolated linearly in time).
+      loss = mean_i (r_i / L)^2,        r_i = x_R(t_i; params) - x_i;
+
+- the Gurney slab (``GurneySlab``, an explosive driving a plate): the plate's velocity
+  ``v_plate(t)`` (a PDV record), fitting the products' constants (``D``, ``gamma``, or JWL's ``A``,
+  ``B``, ...), with the residuals divided by the largest observed speed instead of ``L``.
+
+The observable comes from a jaxmpm run (its saved history, interpolated linearly in time).
 
 **The fit's variables.** Parameters stay in their physical ranges by a change of variables
 ``theta = ln(p - p_off)``: ``p_off = 1`` for ``gamma``, ``p_atm`` for ``P0``, 0 for any other (positive)
@@ -23,8 +29,8 @@ edge: no minimum inside the range), the fit ends at the edge and ``Fit.warning``
 point; a trial whose run breaks down (or whose loss is higher) is rejected, the damping raised and the
 step shortened: a broken run's loss is never used (``Fit.rejected`` lists every rejected trial).
 ``"lbfgs"`` (``optax.lbfgs`` with its zoom line search, gradients in reverse mode) and ``"adam"``
-remain; a broken trial gives them a NaN loss, which the line search refuses. Several starts run at
-once under ``vmap``; the lowest final loss wins.
+are the other methods; a broken trial gives them a NaN loss, which the line search refuses. Several
+starts run at once under ``vmap``; the lowest final loss wins.
 
 **Uncertainty at the optimum.** From ``J`` at the best point: the Gauss-Newton covariance
 ``C = sigma^2 (J^T J)^-1`` with ``sigma^2 = sum r^2 / (n - p)`` (or the measurement noise, ``noise``),

@@ -129,7 +129,8 @@ class ArtificialViscosity(eqx.Module):
             h: grid spacing.
 
         Returns:
-            ``q``, as in the module's docstring.
+            ``q = rho (c_quad (h d)^2 + c_lin c h |d|)`` where the volumetric rate ``d = (J_new -
+            J_old) / (dt J_new)`` is negative (compression), 0 where it is not.
         """
         J_old, J_new = det(F_old), det(F_new)
         c = jax.vmap(material.sound_speed, in_axes=(0, None))(F_new, rho0)
@@ -155,7 +156,8 @@ class ArtificialViscosity(eqx.Module):
             h: grid spacing.
 
         Returns:
-            ``q``, as in the module's docstring.
+            ``q = rho (c_quad (h d)^2 + c_lin c h |d|)`` where the volumetric rate ``d = (J_new -
+            J_old) / (dt J_new)`` is negative (compression), 0 where it is not.
         """
         rate = (J_new - J_old) / (dt * J_new)
         compress = jnp.minimum(rate, 0.0)
