@@ -238,9 +238,10 @@ def _separation(x, F, r0):
 
 
 def _safe_sqrt(x):
-    """``sqrt`` whose derivative at 0 is 0 instead of NaN (an exact solution has zero error)."""
-    positive = x > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+    """``sqrt`` whose derivative at 0 is 0 instead of NaN (an exact solution has zero error); NaN stays
+    NaN (a state that is not finite has no error to report as 0)."""
+    zero = x == 0
+    return jnp.where(zero, 0.0, jnp.sqrt(jnp.where(zero, 1.0, x)))
 
 
 def _sq_rel(a, b, n):

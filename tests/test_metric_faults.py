@@ -179,3 +179,27 @@ def test_write_series_keeps_the_files_already_there(tmp_path):
     again = jm.vtk.write_series(frames, model, sol, overwrite=True)
     assert [p.name for p in again] == [p.name for p in paths]
     assert {p.name: p.read_bytes() for p in frames.iterdir()} == written
+
+
+def test_a_state_that_is_not_finite_has_no_zero_error(runs):
+    """A NaN in a state the status calls healthy (written there by hand, or by a manufactured solution
+    that is not finite) gives NaN errors, never 0: a zero error would read as an exact result."""
+    scene, _, ok = runs
+    nan_F = eqx.tree_at(lambda s: s.F, ok.state, ok.state.F.at[0].set(jnp.nan))
+    err = jm.errors(scene, nan_F, ok.body)
+    for key in ("F_max_rel", "F_rms_rel"):
+        assert np.isnan(float(err[key])), (key, err[key])
+    assert np.isnan(np.asarray(jm.separation(nan_F, ok.body))).any()
+    assert float(jm.errors(scene, ok.state, ok.body)["F_max_rel"]) >= 0.0  # finite where the state is
+    # the derivative of an error that is exactly 0 stays 0 (no NaN from sqrt at 0)
+    start = jm.simulate(scene, jm.MPQ(), dt=DT, steps=0)
+    assert (
+        float(
+            jax.grad(
+                lambda F: jm.errors(scene, eqx.tree_at(lambda s: s.F, start.state, F), start.body)[
+                    "F_rms_rel"
+                ]
+            )(start.state.F).sum()
+        )
+        == 0.0
+    )
