@@ -36,6 +36,12 @@ def as_float(x: object) -> Float[Array, ""]:
     return jnp.asarray(x, dtype=jnp.result_type(float))
 
 
+ONE_VALUE = (
+    ": to run several values, jax.vmap over simulate (building the scene in it) or use jaxmpm.ensemble"
+)
+"""How to run several values of a parameter, for the message that refuses an array of them."""
+
+
 def check_real_fields(module: object, batch: str | None = None) -> None:
     """Name the ``as_float`` field of ``module`` that is not a number, before the converters run
     (``as_float`` cannot name it): called by the ``__post_init__`` of scenes, materials and

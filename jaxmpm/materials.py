@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._checks import check_greater, check_less, check_nonnegative, check_positive
-from ._util import as_float, check_real_fields, contract, det, power
+from ._util import ONE_VALUE, as_float, check_real_fields, contract, det, power
 
 
 class AbstractMaterial(eqx.Module):
@@ -22,9 +22,10 @@ class AbstractMaterial(eqx.Module):
         """Name a parameter that is not a number before the converters run (``check_real_fields``).
 
         Raises:
-            ValueError: a parameter is not a real number ("P0 must be a real number, got None").
+            ValueError: a parameter is not a real number ("P0 must be a real number, got None"), or is
+                an array with a shape (a material's parameters are one number each).
         """
-        check_real_fields(self)
+        check_real_fields(self, ONE_VALUE)
 
     @abc.abstractmethod
     def stress(self, F: Float[Array, "dim dim"]) -> Float[Array, "dim dim"]:
@@ -275,9 +276,10 @@ class AbstractEOS(eqx.Module):
         """Name a parameter that is not a number before the converters run (``check_real_fields``).
 
         Raises:
-            ValueError: a parameter is not a real number ("gamma must be a real number, got None").
+            ValueError: a parameter is not a real number ("gamma must be a real number, got None"), or
+                is an array with a shape (an equation of state's parameters are one number each).
         """
-        check_real_fields(self)
+        check_real_fields(self, ONE_VALUE)
 
     @abc.abstractmethod
     def pressure_terms(

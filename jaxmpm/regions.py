@@ -23,8 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._checks import check_nonnegative, check_positive, is_concrete
-from ._util import as_float, corner_signs, lattice
+from ._checks import check_nonnegative, check_positive, check_real, is_concrete
+from ._util import ONE_VALUE, as_float, check_real_fields, corner_signs, lattice
 from .geometry import AbstractShape
 from .materials import AbstractEOS, AbstractMaterial
 from .particles import Body
@@ -54,11 +54,15 @@ class Region(eqx.Module):
     energy: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
 
     def __post_init__(self):
-        # Before the converters: a velocity not given is the shape's zero vector. (A shape that is
-        # not a jaxmpm shape gets a number, and __check_init__ names the shape.)
+        # Before the converters: rho0 and energy are one real number each, the velocity real numbers
+        # (named here: the converters cannot name them), and a velocity not given is the shape's zero
+        # vector. (A shape that is not a jaxmpm shape gets a number, and __check_init__ names it.)
+        check_real_fields(self, ONE_VALUE)
         if self.velocity is None:
             dim = self.shape.dim if isinstance(self.shape, AbstractShape) else 1
             self.velocity = (0.0,) * dim
+        else:
+            check_real("velocity", self.velocity)
 
     def __check_init__(self):
         if not isinstance(self.shape, AbstractShape):

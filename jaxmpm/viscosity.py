@@ -27,8 +27,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._checks import check_nonnegative, check_real
-from ._util import as_float, check_real_fields, det
+from ._checks import check_nonnegative, check_real, check_scalar
+from ._util import ONE_VALUE, as_float, check_real_fields, det
 from .materials import AbstractMaterial
 
 
@@ -55,11 +55,12 @@ class ArtificialViscosity(eqx.Module):
 
         Raises:
             ValueError: a coefficient is not a real number ("c_lin must be a real number, got 'x'"),
-                or ``c_shear`` is neither ``None`` nor one.
+                or ``c_shear`` is neither ``None`` nor one, or a coefficient is an array with a shape.
         """
-        check_real_fields(self)
+        check_real_fields(self, ONE_VALUE)
         if self.c_shear is not None:
             check_real("c_shear", self.c_shear)
+            check_scalar("c_shear", self.c_shear, ONE_VALUE)
 
     def __check_init__(self):
         check_nonnegative("c_quad", self.c_quad)

@@ -238,3 +238,47 @@ def test_grid_takes_a_traced_spacing():
     x_max = jax.jit(lambda h: jm.Grid(x_min=jnp.zeros(1), h=h, n_nodes=4).x_max)(jnp.asarray(0.5))
     assert float(x_max[0]) == 1.5
     assert jm.GasExpansion(cells=2, pad=1).grid().n_nodes == 5
+
+
+GAS = dict(P0=3e5, gamma=1.4, p_atm=1e5)
+ONE_NUMBER = r"must be one number, got an array of shape \(2,\): to run several values, jax.vmap"
+
+
+@pytest.mark.parametrize(
+    "name, make",
+    [
+        ("P0", lambda: jm.AdiabaticGas(**{**GAS, "P0": [3e5, 4e5]})),
+        ("E", lambda: jm.LinearElastic(E=[1.0, 2.0])),
+        ("lam", lambda: jm.NeoHookean(lam=[1.0, 2.0], mu=1.0)),
+        ("gamma", lambda: jm.IdealGas(gamma=[1.4, 1.5])),
+        ("c_quad", lambda: jm.ArtificialViscosity(c_quad=[1.0, 2.0])),
+        ("c_shear", lambda: jm.ArtificialViscosity(c_shear=[1.0, 2.0])),
+        ("rho0", lambda: jm.Region(jm.geometry.Box((0, 0), (4, 4)), jm.AdiabaticGas(**GAS), rho0=[1.0, 2.0])),
+    ],
+)
+def test_a_material_parameter_is_one_number(name, make):
+    """An array where a material, a viscosity or a region takes one number is refused by name: a gas
+    given two P0s would otherwise run with an anisotropic stress, status 0."""
+    assert _one_line(make, rf"^{name} {ONE_NUMBER}")
+
+
+def test_a_region_names_its_parameter_that_is_not_a_number():
+    box, gas = jm.geometry.Box((0, 0), (4, 4)), jm.AdiabaticGas(**GAS)
+    _one_line(
+        lambda: jm.Region(box, gas, rho0="a"),
+        r"^rho0 must be a real number, got 'a'",
+        (ValueError, TypeError),
+    )
+    _one_line(
+        lambda: jm.Region(box, gas, rho0=1.0, velocity="a"),
+        r"velocity must be a real number",
+        (ValueError, TypeError),
+    )
+
+
+def test_material_parameters_under_vmap_pass():
+    """Tracers pass the check: a material built inside jax.vmap takes one value per member."""
+    P = jax.vmap(lambda P0: jm.AdiabaticGas(P0=P0, gamma=1.4, p_atm=1e5).pressure(jnp.asarray(1.0)))(
+        jnp.array([3e5, 4e5])
+    )
+    np.testing.assert_allclose(np.asarray(P), [2e5, 3e5], rtol=1e-15)

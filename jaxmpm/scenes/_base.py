@@ -10,14 +10,11 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_int, check_positive
-from .._util import check_real_fields
+from .._util import ONE_VALUE, check_real_fields
 from ..grid import Grid
 from ..materials import AbstractEOS, AbstractMaterial
 from ..particles import Body, seed_box
 from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
-
-_SEVERAL = ": to run several values, jax.vmap over simulate (building the scene in it) or use jaxmpm.ensemble"
-"""How to run several values of a parameter, for the message that refuses an array of them."""
 
 
 class AbstractScene(eqx.Module):
@@ -92,7 +89,7 @@ class AbstractScene(eqx.Module):
                 values are for ``jax.vmap``, whose tracers pass); ``cells``, ``ppc`` or ``pad`` is not
                 an integer >= 1.
         """
-        check_real_fields(self, _SEVERAL)
+        check_real_fields(self, ONE_VALUE)
         for name in ("cells", "ppc", "pad"):
             check_int(name, getattr(self, name), 1)
 
