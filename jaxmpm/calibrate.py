@@ -89,7 +89,7 @@ from ._util import host
 from .interpolators import AbstractInterpolator
 from .long_run import computed
 from .scenes import AbstractScene
-from .scenes.gas_slab import free_surface, pad_for
+from .scenes.gas_slab import GasSlab, free_surface, pad_for
 from .scenes.gurney import AbstractGurney, GurneySlab
 from .sensitivity import check_names, continuous_parameters, static_parameters
 from .status import LEFT_GRID
@@ -780,11 +780,17 @@ def _check_parts(scene, interpolator) -> None:
     """Refuse a scene or an interpolator that is not jaxmpm's, naming what is allowed, before any run.
 
     Raises:
-        ValueError: ``scene`` is not a jaxmpm scene, or ``interpolator`` not a jaxmpm interpolator
-            (``check_interpolator``: a registry name such as ``"mpq"`` is told to pass ``jm.MPQ()``).
+        ValueError: ``scene`` is not a jaxmpm scene, or one without an observable (not a ``GasSlab``
+            or a ``GurneySlab``), or ``interpolator`` not a jaxmpm interpolator (``check_interpolator``:
+            a registry name such as ``"mpq"`` is told to pass ``jm.MPQ()``).
     """
     if not isinstance(scene, AbstractScene):
         raise ValueError(f"scene must be a jaxmpm scene such as jm.GasSlab(), got {brief(scene)}")
+    if not isinstance(scene, GasSlab | GurneySlab):
+        raise ValueError(
+            f"scene must be a jm.GasSlab (observed: its free surface) or a jm.GurneySlab (its plate's "
+            f"velocity), the scenes with an observable to fit; got {type(scene).__name__}"
+        )
     check_interpolator(interpolator)
 
 
@@ -861,6 +867,7 @@ def _check_names(scene, names) -> None:
 
 def _check_thresholds(noise, max_correlation, max_relative_std) -> None:
     if noise is not None:
+        check_scalar("noise", noise, " (one standard deviation, in the units of the data)")
         check_positive("noise", noise)
     if not (isinstance(max_correlation, (int, float)) and 0.0 < max_correlation <= 1.0):
         raise ValueError(f"max_correlation must be a number in (0, 1], got {max_correlation!r}")
@@ -1536,6 +1543,13 @@ class Information:
     noise: float
 
     def _rows(self, t_end, samples):
+        if t_end is not None:
+            check_scalar("t_end", t_end)
+            check_finite("t_end", t_end)
+            if not float(t_end) >= float(self.ts[0]):
+                raise ValueError(
+                    f"t_end must be at or after the plan's first time, {float(self.ts[0]):.6g}, got {t_end!r}"
+                )
         idx = np.flatnonzero(self.ts <= (np.inf if t_end is None else t_end * (1 + 1e-12)))
         if samples is not None:
             check_int("samples", samples, 2)
@@ -1555,6 +1569,9 @@ class Information:
         Returns:
             ``(p, p)``, physical units.
         """
+        if noise is not None:
+            check_scalar("noise", noise, " (one standard deviation, in the units of the data)")
+            check_real("noise", noise)
         s = self.noise if noise is None else float(noise)
         check_positive("noise", s)
         J = self.jacobian[self._rows(t_end, samples)]
@@ -1639,6 +1656,7 @@ def information(
     _check_parts(scene, interpolator)
     names = tuple(_names(fit))
     _check_names(scene, names)
+    check_scalar("noise", noise, " (one standard deviation, in the units of the data)")
     check_positive("noise", noise)
     check_finite("ts", ts)
     ts = np.asarray(ts, dtype=float)
@@ -1700,7 +1718,7 @@ def profile(
     if not isinstance(fit, Fit):
         raise ValueError(f"fit must be the Fit that calibrate returned, got {brief(fit)}")
     names = tuple(fit.fitted)
-    direction = fit.weakest if direction is None else direction
+    direction = fit.weakest if direction is None else _check_direction(direction, names)
     d = np.array([float(direction.get(n, 0.0)) for n in names])
     check_finite("alphas", alphas)
     if np.size(alphas) == 0:
@@ -1715,6 +1733,28 @@ def profile(
     r, ok = model.residuals(np.zeros_like(start_theta), start_theta, data)
     loss = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), _scale(scene, x_data)), np.nan)
     return dict(alpha=alphas, loss=loss, ok=ok, **{n: values[:, i] for i, n in enumerate(names)})
+
+
+def _check_direction(direction, names) -> dict:
+    """``profile``'s ``direction``: a dict from the fit's names to real numbers, not all zero.
+
+    Raises:
+        ValueError: not a dict, a name the fit did not fit, a component that is not one finite real
+            number, or every component zero (no line).
+    """
+    if not isinstance(direction, dict):
+        raise ValueError(
+            f"direction must be a dict from the fitted names ({', '.join(names)}) to components in "
+            f"d ln p, such as {{{names[0]!r}: 1.0}}, got {brief(direction)}"
+        )
+    for k, v in direction.items():
+        if k not in names:
+            raise ValueError(f"direction names {k!r}, which the fit did not fit; fitted: {', '.join(names)}")
+        check_finite(f"direction[{k!r}]", v)
+        check_scalar(f"direction[{k!r}]", v)
+    if not any(float(v) for v in direction.values()):
+        raise ValueError(f"direction must have a component that is not zero, got {direction!r}")
+    return direction
 
 
 def _bar(progress, total):

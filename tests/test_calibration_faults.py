@@ -164,6 +164,41 @@ def _fit():
             lambda f, sc: f(sc, jm.CPDI(), TS, X, {"gamma": 1.4}, [0.0], dt=DT),
             "fit must be the Fit that calibrate returned",
         ),
+        (
+            "calibrate",
+            lambda f, sc: f(jm.GasExpansion(), jm.CPDI(), TS, X, fit=("beta",), dt=DT),
+            r"scene must be a jm.GasSlab \(observed: its free surface\) or a jm.GurneySlab .* GasExpansion",
+        ),
+        (
+            "trajectory",
+            lambda f, sc: f(jm.AxisAligned(cells=4), jm.CPDI(), TS, dt=DT),
+            r"scene must be a jm.GasSlab .* got AxisAligned",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, noise=[0.1, 0.2], dt=DT),
+            r"noise must be one number, got an array of shape \(2,\)",
+        ),
+        (
+            "information",
+            lambda f, sc: f(sc, jm.CPDI(), TS, noise=[0.1], dt=DT),
+            r"noise must be one number, got an array of shape \(1,\)",
+        ),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, _fit(), [0.0], dt=DT, direction={"gama": 1.0}),
+            r"direction names 'gama', which the fit did not fit; fitted: gamma, P0",
+        ),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, _fit(), [0.0], dt=DT, direction=[1.0, 0.0]),
+            r"direction must be a dict from the fitted names \(gamma, P0\)",
+        ),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, _fit(), [0.0], dt=DT, direction={"gamma": 0.0}),
+            "direction must have a component that is not zero",
+        ),
         ("fittable", lambda f, sc: f("gas-slab"), "scene must be a jaxmpm scene or scene class"),
         (
             "uncertainty",
@@ -270,3 +305,21 @@ def test_information_correlation_of_a_plan_that_determines_nothing_is_refused():
     assert all(np.isinf(v) for v in info.std().values())
     with pytest.raises(ValueError, match="this plan does not determine P0 and p_atm: the Fisher information"):
         info.correlation()
+
+
+def test_a_plan_refuses_a_window_before_its_first_time():
+    """``Information.std`` of a window that holds no observation is refused, not a silent inf."""
+    info = cal.Information(
+        names=("gamma",),
+        values={"gamma": 1.4},
+        ts=np.array([1e-3, 2e-3]),
+        jacobian=np.ones((2, 1)),
+        noise=0.1,
+    )
+    assert np.isfinite(info.std()["gamma"])
+    with pytest.raises(ValueError, match=r"t_end must be at or after the plan's first time, 0.001, got -1.0"):
+        raw(cal.Information.std)(info, t_end=-1.0)
+    with pytest.raises(ValueError, match="t_end must be a real number, got 'a'"):
+        raw(cal.Information.fisher)(info, t_end="a")
+    with pytest.raises(ValueError, match=r"noise must be one number, got an array of shape \(2,\)"):
+        raw(cal.Information.fisher)(info, noise=[1.0, 2.0])
