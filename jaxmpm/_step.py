@@ -26,7 +26,16 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import status as st_bits
-from ._checks import brief, check_int, check_positive, check_scalar, is_concrete, is_real, python_int
+from ._checks import (
+    brief,
+    check_int,
+    check_nonnegative,
+    check_positive,
+    check_scalar,
+    is_concrete,
+    is_real,
+    python_int,
+)
 from ._util import as_float, contract, det, materialise
 from .boundaries import ArtificialLayer, TractionPoints, artificial_layer, fixed_mask, traction_points
 from .explosives import ProgrammedBurn
@@ -207,6 +216,20 @@ def check_dt(dt, batch: str = "") -> None:
     check_scalar("dt", dt, batch)
 
 
+def check_model(model) -> None:
+    """Refuse what is not a ``Model`` (a scene given in its place, say), naming what is wanted.
+
+    Raises:
+        ValueError: ``model`` is not a ``Model``.
+    """
+    if not isinstance(model, Model):
+        if isinstance(model, AbstractScene):
+            got = f"the scene {type(model).__name__}: wrap it, jm.Model(scene, interpolator, transfer)"
+        else:
+            got = type(model).__name__ if isinstance(model, eqx.Module) else brief(model)
+        raise ValueError(f"model must be a jm.Model(scene, interpolator, transfer), got {got}")
+
+
 class Model(eqx.Module):
     """Everything a run is made of: the scene (with its parameters) and the method choices.
 
@@ -271,6 +294,27 @@ class Model(eqx.Module):
             raise ValueError(
                 f"volume_average must be None or one of {', '.join(map(repr, VOLUME_AVERAGES))}, got "
                 f"{self.volume_average!r}"
+            )
+        check_float_type(self.scene)
+
+
+def check_float_type(scene: AbstractScene) -> None:
+    """Refuse a scene whose parameters are of another float type than the run's: one made while
+    float64 was off (float32 arrays) and run after ``jax_enable_x64`` was switched on.
+
+    Raises:
+        ValueError: a float parameter of the scene (its materials' too) is not of the default float
+            type, naming it and what to do.
+    """
+    want = jnp.result_type(float)
+    for path, leaf in jax.tree_util.tree_leaves_with_path(eqx.filter(scene, eqx.is_array)):
+        dtype = getattr(leaf, "dtype", None)
+        if dtype is not None and jnp.issubdtype(dtype, jnp.floating) and dtype != want:
+            name = jax.tree_util.keystr(path).lstrip(".")
+            raise ValueError(
+                f"the scene's {name} is {dtype} and this run is {want} (jax_enable_x64 is "
+                f"{'on' if want == jnp.float64 else 'off'}): make the scene after switching float64 on or "
+                f"off, jax.config.update('jax_enable_x64', ...), not before"
             )
 
 
@@ -507,9 +551,10 @@ def setup(model: Model) -> Setup:
         The ``Setup``.
 
     Raises:
-        ValueError: ``pad`` leaves no room for the artificial cells, or the scene's traction has
-            the wrong number of faces.
+        ValueError: ``model`` is not a ``Model``, ``pad`` leaves no room for the artificial cells, or
+            the scene's traction has the wrong number of faces.
     """
+    check_model(model)
     scene = model.scene
     grid = scene.grid()
     free = (scene.left == "free", scene.right == "free")
@@ -552,6 +597,7 @@ def initial_state(model: Model, setup: Setup) -> State:
         ValueError: ``setup`` is not a ``Setup`` of ``model`` as far as its shapes tell (another
             run's: another particle count, dimension or grid; ``check_belongs``).
     """
+    check_model(model)
     check_belongs(model, setup)
     return start_state(model, setup)
 
@@ -713,6 +759,7 @@ def check_belongs(model: Model, setup, state=_SETUP_ONLY) -> None:
         ValueError: ``setup`` or ``state`` is not a ``Setup`` or ``State``, or is another run's: the
             message names the argument, the first entry that differs and what it should be.
     """
+    check_model(model)
     if not isinstance(setup, Setup):
         raise ValueError(f"setup must be the Setup of model, jm.setup(model), got {brief(setup)}")
     if state is not _SETUP_ONLY and not isinstance(state, State):
@@ -894,11 +941,31 @@ def step(
             not checked. A ``setup`` or ``state`` of another run (``check_belongs``: their shapes
             are compared with ``model``'s, tracers too).
     """
+    check_model(model)
     check_dt(dt, ": to step with several values, jax.vmap over step")
     check_belongs(model, setup, state)
+    _check_step_options(limit, active, t_new)
     if not isinstance(dt, jax.Array):  # a Python or NumPy number, as simulate converts it
         dt = as_float(dt)
     return _compiled_step(model, setup, state, dt, limit, active, t_new)
+
+
+def _check_step_options(limit, active, t_new) -> None:
+    """``step``'s optional arguments, where concrete: ``limit`` one integer, ``active`` one bool,
+    ``t_new`` one finite number >= 0 (tracers pass).
+
+    Raises:
+        ValueError: one that is not, named.
+    """
+    if limit is not None and is_concrete(limit):
+        if np.ndim(limit) != 0 or not np.issubdtype(np.asarray(limit).dtype, np.integer):
+            raise ValueError(f"limit must be one integer (a step count) or None, got {brief(limit)}")
+    if active is not None and is_concrete(active):
+        if np.ndim(active) != 0 or np.asarray(active).dtype != np.bool_:
+            raise ValueError(f"active must be one bool or None, got {brief(active)}")
+    if t_new is not None:
+        check_scalar("t_new", t_new)
+        check_nonnegative("t_new", t_new)
 
 
 def take_step(

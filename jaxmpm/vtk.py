@@ -373,12 +373,25 @@ def write_series(
         ValueError: the solution has no history, or its history lacks a field the files need; it
             holds a batch (an ensemble's); it broke down and ``allow_broken`` is ``False``; the
             model is not the solution's run (as far as the solution records it, above); its
-            internal variables have names legacy VTK cannot hold; ``out_dir`` is a file, or a folder
-            is there under a name to write; or ``overwrite`` or ``allow_broken`` is not a bool.
+            internal variables have names legacy VTK cannot hold; ``out_dir`` is not a folder's name
+            (empty, or not a path) or is a file, or a folder is there under a name to write; ``model``
+            is not a ``Model`` or ``solution`` not a ``Solution``; or ``overwrite`` or
+            ``allow_broken`` is not a bool.
         FileExistsError: a file to write is already in ``out_dir`` and ``overwrite`` is ``False``.
     """
     check_bool("overwrite", overwrite)
     check_bool("allow_broken", allow_broken)
+    if not isinstance(out_dir, (str, os.PathLike)) or not os.fspath(out_dir):
+        raise ValueError(f"out_dir must be a folder's name (a str or os.PathLike), got {brief(out_dir)}")
+    from ._simulate import Solution
+    from ._step import check_model
+
+    check_model(model)
+    if not isinstance(solution, Solution):
+        raise ValueError(
+            f"solution must be the Solution of a run (jm.simulate(..., saveat=jm.SaveAt(every=k))), got "
+            f"{type(solution).__name__ if isinstance(solution, eqx.Module) else brief(solution)}"
+        )
     if solution.history is None:
         raise ValueError(
             "write_series needs a solution with a history: simulate(..., saveat=SaveAt(every=k))"

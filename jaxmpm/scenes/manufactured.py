@@ -72,6 +72,11 @@ class Manufactured(AbstractDisplacementScene):
             raise ValueError(f"model must be one of {MODELS}, got {self.model!r}")
         if self.ends not in ENDS:
             raise ValueError(f"ends must be one of {ENDS}, got {self.ends!r}")
+        if self.displacement_fn is not None and not callable(self.displacement_fn):
+            raise ValueError(
+                f"displacement_fn must be a function u(scene, X, t) -> u, or None, got "
+                f"{type(self.displacement_fn).__name__} {self.displacement_fn!r:.60}"
+            )
         check_finite("A", self.A)
         # Both models' constants are checked whichever model runs: a bad value is refused, not
         # ignored because the other model would have used it.
