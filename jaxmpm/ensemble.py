@@ -81,6 +81,29 @@ class Ensemble:
             )
         return out
 
+    def member_scene(self, scene: AbstractScene, i: int | np.integer | jax.Array) -> AbstractScene:
+        """Member ``i``'s scene: ``scene`` (the one given to ``ensemble``) with the member's values of
+        the varied parameters, for measuring the member against its own exact solution.
+
+        Args:
+            scene: the ensemble's scene.
+            i: the member, as for ``member``.
+
+        Returns:
+            The scene with ``params[name][i]`` for each varied ``name``.
+
+        Raises:
+            ValueError: ``scene`` is not a jaxmpm scene or lacks a varied parameter; ``i`` as for
+                ``member``.
+        """
+        k = self._index(i)
+        if not isinstance(scene, AbstractScene):
+            raise ValueError(f"scene must be the ensemble's jaxmpm scene, got {brief(scene)}")
+        missing = [name for name in self.params if not hasattr(scene, name)]
+        if missing:
+            raise ValueError(f"scene must be the ensemble's, and {scene.name} has no {', '.join(missing)}")
+        return dataclasses.replace(scene, **{name: float(v[k]) for name, v in self.params.items()})
+
     def member(self, i: int | np.integer | jax.Array) -> Solution:
         """One member's solution.
 
@@ -96,6 +119,11 @@ class Ensemble:
             ValueError: ``i`` is not an integer (a bool is not one) or not a member's index (from
                 ``-members`` to ``members - 1``).
         """
+        k = self._index(i)
+        return jax.tree_util.tree_map(lambda a: a[k], self.solution)
+
+    def _index(self, i) -> int:
+        """``i`` as a member's index, or the ``ValueError`` of ``member``."""
         n = len(self.status)
         try:  # a Python or NumPy integer, or a concrete 0-d integer array
             k = None if isinstance(i, bool | np.bool_) else operator.index(i)
@@ -106,7 +134,7 @@ class Ensemble:
                 f"i must be a member's index, an integer from 0 to {n - 1} (or from {-n} to -1, "
                 f"counting from the end) for this ensemble of {n} members, got {brief(i)}"
             )
-        return jax.tree_util.tree_map(lambda a: a[k], self.solution)
+        return k
 
 
 def variable_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:

@@ -304,7 +304,9 @@ def _check_state(state, what: str, allow_broken) -> None:  # allow_broken: check
     if state.x.ndim != 2:
         raise ValueError(
             f"{what} measures one run, and this state holds a batch (x of shape {tuple(state.x.shape)}): "
-            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
+            "measure each member whose status is 0 (Ensemble.member(i), with its scene "
+            "Ensemble.member_scene(scene, i)); under jax.vmap the status is not read, so leave out the "
+            "members that broke down first"
         )
     _refuse_broken(state, allow_broken, f"{what} measures a finished run, and this state is")
 
@@ -324,7 +326,9 @@ def _check_body(body) -> None:
     if body.X.ndim != 2:
         raise ValueError(
             f"body must be one run's Body, and this one holds a batch (X of shape {tuple(body.X.shape)}): "
-            "measure each member (Ensemble.member(i)), or map over them with jax.vmap"
+            "measure each member whose status is 0 (Ensemble.member(i), with its scene "
+            "Ensemble.member_scene(scene, i)); under jax.vmap the status is not read, so leave out the "
+            "members that broke down first"
         )
 
 

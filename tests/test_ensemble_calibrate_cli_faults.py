@@ -361,3 +361,25 @@ def test_data_beyond_the_grid_name_the_column_and_a_pad_that_exists(capsys, tmp_
     assert line.endswith(
         "a grid holding them needs pad = 4e+301 cells, beyond any memory: check the data's units"
     )
+
+
+def test_a_member_is_measured_with_its_own_scene():
+    """``Ensemble.member_scene`` gives member i's scene (the varied values put in), so that its errors
+    are against its own exact solution, not the base scene's."""
+    scene = jm.GasExpansion(cells=4)
+    kw = dict(dt=1e-5, steps=5, artificial_cells=1)
+    ens = jm.ensemble(scene, jm.MPQ(), {"beta": [150.0, 250.0]}, **kw)
+    for i, beta in enumerate((150.0, 250.0)):
+        own = ens.member_scene(scene, i)
+        assert float(own.beta) == beta and own.cells == scene.cells
+        alone = jm.GasExpansion(cells=4, beta=beta)
+        one = jm.simulate(alone, jm.MPQ(), **kw)
+        got = float(jm.errors(own, ens.member(i).state, ens.member(i).body)["F_max_rel"])
+        np.testing.assert_allclose(got, float(jm.errors(alone, one.state, one.body)["F_max_rel"]), rtol=1e-9)
+        # the base scene's beta (200) measures the member against another solution
+        base = float(jm.errors(scene, ens.member(i).state, ens.member(i).body)["F_max_rel"])
+        assert base > 10 * got
+    with pytest.raises(ValueError, match=r"scene must be the ensemble's, and vibrating-bar has no beta"):
+        ens.member_scene(jm.VibratingBar(), 0)
+    with pytest.raises(ValueError, match="i must be a member's index"):
+        ens.member_scene(scene, 2)

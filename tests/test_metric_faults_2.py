@@ -59,10 +59,13 @@ def test_a_batch_with_a_broken_member_is_refused_by_every_state_measure(runs):
         with pytest.raises(
             ValueError,
             match=rf"^{name}\(\) measures one run, and this state holds a batch \(x of shape \(2, 2, 1\)\): "
-            r"measure each member \(Ensemble.member\(i\)\), or map over them with jax.vmap$",
+            r"measure each member whose status is 0 \(Ensemble.member\(i\), with its scene "
+            r"Ensemble.member_scene\(scene, i\)\); under jax.vmap the status is not read, so leave out "
+            r"the members that broke down first$",
         ):
             call()
-    # as advised, mapped over the members (traced, the status is checked beside the measure)
+    # mapped over the members (traced, the status is not read: the broken member is measured at its
+    # last good state, which is why the message says to leave such members out first)
     rho = jax.vmap(jm.density)(state, body)
     np.testing.assert_array_equal(rho[0], jm.density(ok.state, ok.body))
     np.testing.assert_array_equal(rho[1], jm.density(broken.state, broken.body, allow_broken=True))
