@@ -50,8 +50,8 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
     """Write ``path`` through a new temporary file beside it, renamed into place once written.
 
     The temporary file has a name of its own (made new: no existing file is written over). A write
-    that fails (a full disk) removes it and raises, leaving what ``path`` held; an ``OSError`` names
-    ``path`` (its ``filename``).
+    or rename that fails (a full disk, a folder at ``path``) removes it and raises, leaving what
+    ``path`` held; an ``OSError`` names ``path`` (its ``filename``).
 
     Args:
         path: the file to write.
@@ -72,4 +72,12 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    os.replace(tmp, path)
+    try:
+        os.replace(tmp, path)  # fails where path is a folder
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        e.filename, e.filename2 = str(path), None
+        raise
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -299,3 +299,24 @@ def test_cells_of_is_exact_for_any_integer():
             assert _baselines_2d.cells_of((2 * k) ** dim - 1, dim) is None
             assert _baselines_2d.cells_of((2 * k + 1) ** dim, dim) is None  # an odd side
         assert _baselines_2d.cells_of(0, dim) is None and _baselines_2d.cells_of(-(2**dim), dim) is None
+
+
+def test_a_folder_under_a_bench_files_name_is_refused_before_the_benchmark(tmp_path, capsys, recorded):
+    """A folder where the benchmark writes a file: said before the benchmark (after it, the whole
+    measurement was lost with "Is a directory"), even with --overwrite."""
+    (tmp_path / "bench.csv").mkdir()
+    assert cli.main(argv("--overwrite", out=str(tmp_path))) == 2
+    one_line_error(capsys, f"--out {tmp_path}", "bench.csv is a folder")
+    assert recorded == []
+
+
+def test_the_results_are_printed_before_the_files_are_written(tmp_path, capsys, monkeypatch, replayed):
+    """A write that fails after the benchmark (a full disk) still leaves the measurements on stdout."""
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(bench, "write", full)
+    assert cli.main(argv(out=str(tmp_path))) == 74
+    cap = capsys.readouterr()
+    assert "NumPy" in cap.out and "No space left on device" in cap.err

@@ -338,3 +338,42 @@ def test_a_study_rerun_replaces_its_own_figures(tmp_path, capsys):
     assert main(["study", "talk", "--out", str(tmp_path), "--small"]) == 0
     assert old.read_bytes().startswith(b"\x89PNG") and (tmp_path / "F_t0.0001.png").exists()
     assert not [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_a_folder_under_a_frames_name_is_refused_before_the_run(tmp_path, capsys):
+    """--vtk with --overwrite where a frame's name is a folder: refused before the run, one line (it
+    was a traceback after the run, and a run that broke down lost its breakdown message)."""
+    out = tmp_path / "vtk"
+    out.mkdir()
+    (out / "particles_00002.vtk").mkdir()
+    argv = ["run", "gas-expansion", "cells=4", "ppc=1", "pad=2", "--interpolator", "spq", "--dt", "1e-5"]
+    assert main([*argv, "--steps", "4", "--vtk", str(out), "--vtk-every", "2", "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.startswith(f"jaxmpm: error: --vtk {out}: particles_00002.vtk is a folder")
+        and "Traceback" not in err
+    )
+    assert _files(out) == ["particles_00002.vtk"]
+
+
+def test_a_folder_under_a_study_files_name_is_refused_before_the_study(tmp_path, capsys):
+    (tmp_path / ".jaxmpm-study").write_text("talk\n")
+    (tmp_path / "results.csv").mkdir()
+    assert main(["study", "talk", "--out", str(tmp_path), "--small"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.startswith(f"jaxmpm: error: --out {tmp_path}: results.csv is a folder") and "Traceback" not in err
+    )
+    assert _files(tmp_path) == [".jaxmpm-study", "results.csv"]
+
+
+def test_a_whole_write_onto_a_folder_leaves_no_temporary_file(tmp_path):
+    """``write_whole`` whose rename fails (a folder at the path) removes its temporary file and names
+    the path, not the temporary file."""
+    from jaxmpm._files import write_whole
+
+    (tmp_path / "a.csv").mkdir()
+    with pytest.raises(OSError) as info:
+        write_whole(tmp_path / "a.csv", lambda f: f.write(b"x"))
+    assert info.value.filename == str(tmp_path / "a.csv")
+    assert _files(tmp_path) == ["a.csv"]

@@ -219,6 +219,12 @@ def command(args) -> int:
     )
     if args.out is not None:  # before minutes of benchmark, not after
         folder = writable_folder(args.out, "--out")
+        folders = [name for name in bench.FILES if (folder / name).is_dir()]
+        if folders:
+            raise UsageError(
+                f"--out {args.out}: {folders[0]} is a folder, where the benchmark writes a file of that "
+                "name; move it, or choose another folder"
+            )
         held = [name for name in bench.FILES if (folder / name).exists()]
         if held and not args.overwrite:
             raise UsageError(
@@ -245,6 +251,11 @@ def command(args) -> int:
     except bench.WorkerError as e:
         print(f"jaxmpm: error: {e}", file=sys.stderr)
         return 1
+    # the results first: a write that fails (a full disk) does not lose the measurements
+    if args.json:
+        print_json(result)
+    else:
+        print(bench.table(result))
     if args.out is not None:
         try:
             paths = bench.write(result, args.out, overwrite=args.overwrite)
@@ -252,8 +263,4 @@ def command(args) -> int:
             raise CannotWrite(f"--out {args.out}", e) from None
         if not args.json:
             print("wrote " + ", ".join(str(p) for p in paths))
-    if args.json:
-        print_json(result)
-    else:
-        print(bench.table(result))
     return 0

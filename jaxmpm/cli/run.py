@@ -349,6 +349,12 @@ def _check_vtk_folder(folder, overwrite: bool) -> None:
     """``--vtk DIR`` before the run: a folder that can be written, without the frames of another run
     (unless ``--overwrite``)."""
     path = writable_folder(folder, "--vtk")
+    folders = sorted(p.name for p in path.iterdir() if _SERIES.fullmatch(p.name) and p.is_dir())
+    if folders:  # a frame could not be written there: said before the run, not after it
+        raise UsageError(
+            f"--vtk {folder}: {folders[0]} is a folder, where the series writes a file of that name; "
+            "move it, or choose another folder"
+        )
     old = sorted(p.name for p in path.iterdir() if p.suffix in (".vtk", ".vtu", ".vts", ".vtr", ".pvd"))
     if old and not overwrite:
         raise UsageError(
@@ -390,6 +396,8 @@ def _write_vtk(args, scene, interp, settings, sol, made: bool) -> dict:
             f"--vtk {args.vtk}: a file of the series appeared there during the run (another run writing "
             "there?); pass --overwrite to replace it, or choose another folder"
         ) from None
+    except ValueError as e:  # a folder under a frame's name, made there during the run
+        raise UsageError(f"--vtk {args.vtk}: {e}") from None
     except OSError as e:
         if made:
             with contextlib.suppress(OSError):  # only if empty: what someone else put there stays
@@ -397,7 +405,7 @@ def _write_vtk(args, scene, interp, settings, sol, made: bool) -> dict:
         raise CannotWrite(f"--vtk {args.vtk}", e) from None
     written = {p.name for p in paths}
     for old in out_dir.iterdir():
-        if old.name not in written and _FRAME.fullmatch(old.name):
+        if old.name not in written and _FRAME.fullmatch(old.name) and old.is_file():
             with contextlib.suppress(FileNotFoundError):
                 old.unlink()
     return dict(dir=str(args.vtk), frames=(len(paths) - 2) // 2, every=settings["saveat"].every)
@@ -405,6 +413,9 @@ def _write_vtk(args, scene, interp, settings, sol, made: bool) -> dict:
 
 _FRAME = re.compile(r"(particles|grid)_\d{5,}\.vtk")
 """The name of a frame that ``jm.vtk.write_series`` writes."""
+
+_SERIES = re.compile(r"(particles|grid)(_\d{5,}\.vtk|\.pvd)")
+"""The name of a file that ``jm.vtk.write_series`` writes: a frame or a series' ``.pvd``."""
 
 
 def report(

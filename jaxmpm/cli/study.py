@@ -111,6 +111,12 @@ def _claim(folder, name: str, outputs, overwrite: bool) -> None:
         names = sorted(p.name for p in path.iterdir() if p.name != MARK)
     except OSError as e:
         raise UsageError(f"--out {folder}: cannot list the folder ({e.strerror or e})") from None
+    folders = [n for n in names if n in outputs and (path / n).is_dir()]
+    if folders:  # a file of the study could not be written there: said before the study runs
+        raise UsageError(
+            f"--out {folder}: {folders[0]} is a folder, where the study writes a file of that name; "
+            "move it, or choose another folder"
+        )
     if owner == name:
         for leftover in [n for n in names if outputs.leftover(n) or _MARK_FILE.leftover(n)]:
             _remove(path / leftover, folder)
