@@ -79,6 +79,16 @@ def available_bytes() -> int | None:
         if "bytes_limit" not in stats:
             return None
         return int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0))
+    return host_available_bytes()
+
+
+def host_available_bytes() -> int | None:
+    """The host's available memory in bytes (``MemAvailable`` of ``/proc/meminfo``, else free pages),
+    or ``None`` where it cannot be read. Reads no device: JAX's backend is not started.
+
+    Returns:
+        Bytes, or ``None``.
+    """
     try:
         with open("/proc/meminfo") as f:
             for line in f:
@@ -106,6 +116,29 @@ def readable(nbytes: int | float) -> str:
             return f"{nbytes:.3g} {unit}" if unit != "B" else f"{int(nbytes)} B"
         nbytes /= 1000
     raise AssertionError  # pragma: no cover
+
+
+def check_lattice(cells: int, ppc: int, pad: int, dim: int) -> None:
+    """Refuse, before the host builds it, a scene's lattice of particles that would not fit in the
+    host's memory (a body of regions is laid out with NumPy when the scene is made).
+
+    Args:
+        cells, ppc, pad, dim: the scene's sizes.
+
+    Raises:
+        ValueError: the lattice's points and the grid's nodes need more than the host has, naming
+            the sizes to reduce.
+    """
+    points = (cells * ppc) ** dim
+    nodes = (cells + 2 * pad + 1) ** dim
+    nbytes = _WORD * (points * (dim + 6) + nodes)
+    available = host_available_bytes()
+    if available is not None and nbytes > available:
+        raise ValueError(
+            f"the scene (cells={cells}, ppc={ppc}, pad={pad}: {points:,} lattice points, {nodes:,} grid "
+            f"nodes) needs about {readable(nbytes)} of memory to lay out, more than the "
+            f"{readable(available)} available; reduce cells, ppc or pad"
+        )
 
 
 def check(nbytes: int, what: str, hint: str = "make it smaller") -> None:

@@ -282,3 +282,22 @@ def test_material_parameters_under_vmap_pass():
         jnp.array([3e5, 4e5])
     )
     np.testing.assert_allclose(np.asarray(P), [2e5, 3e5], rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "make, sizes",
+    [
+        (lambda: jm.ShockTube(cells=10**14), "cells=100000000000000, ppc=2"),
+        (lambda: jm.BlastDisk(cells=10**20), "cells=100000000000000000000"),
+        (lambda: jm.BlastDisk(pad=10**20), "pad=100000000000000000000"),
+        (lambda: jm.GurneyCylinder(ppc=10**9), "ppc=1000000000"),
+    ],
+)
+def test_a_scene_of_regions_too_large_to_lay_out_is_refused_by_its_sizes(make, sizes):
+    """A body of regions is laid out on the host when the scene is made: sizes beyond the host's
+    memory are refused by name before that (they raised NumPy's MemoryError or an OverflowError, or
+    the process was killed)."""
+    msg = _one_line(
+        make, r"needs about .* of memory to lay out, more than the .* available; reduce cells, ppc or pad"
+    )
+    assert sizes in msg

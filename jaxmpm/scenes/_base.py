@@ -100,6 +100,10 @@ class AbstractScene(eqx.Module):
             or self.dim not in (1, 2, 3)
         ):
             raise ValueError(f"dim must be 1, 2 or 3, got {self.dim!r}")
+        if self.regions is not None:  # laid out on the host now, before anything else is computed
+            from .._memory import check_lattice  # here: _memory imports the step, which imports scenes
+
+            check_lattice(self.cells, self.ppc, self.pad, self.dim)
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)
         self.material()  # a material checks its own parameters (gamma > 1, P0 > 0, E > 0, ...)
