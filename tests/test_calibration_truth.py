@@ -322,7 +322,13 @@ def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path
     for s in starts:
         argv += ["--start", ",".join(f"{k}={v!r}" for k, v in s.items())]
     assert main(argv + ["--devices", "1", "--json", "--no-progress"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    cap = capsys.readouterr()
+    out = json.loads(cap.out)
+    # the start that broke down is named on stderr too (text and JSON alike), not only in the JSON
+    assert (
+        cap.err.startswith("jaxmpm: note: start 3 stopped and is not in the fit: ")
+        and "broke down at step" in cap.err
+    )
     assert out["starts"] == starts and len(out["starts_fitted"]) == 4
     assert list(out["failed_starts"]) == ["3"] and "broke down at step" in out["failed_starts"]["3"]
     assert out["starts_fitted"][3] is None and out["best_start"] != 3

@@ -441,6 +441,8 @@ def command(args) -> int:
             f"loss={fit.loss:.6g}  iterations={fit.iterations}  wall_s={fit.wall_s:.3f}  dt={dt:.6g}  "
             f"pad={scene.pad}  condition={fit.condition:.3g}"
         )
+    for i, why in fit.failed_starts.items():  # the fit is the other starts'; say which did not count
+        print(f"jaxmpm: note: start {i} stopped and is not in the fit: {why}", file=sys.stderr)
     if fit.warning is not None:
         print(f"jaxmpm: warning: {fit.warning}", file=sys.stderr)
     return 0
