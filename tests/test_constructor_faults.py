@@ -301,3 +301,16 @@ def test_a_scene_of_regions_too_large_to_lay_out_is_refused_by_its_sizes(make, s
         make, r"needs about .* of memory to lay out, more than the .* available; reduce cells, ppc or pad"
     )
     assert sizes in msg
+
+
+def test_particles_beyond_float64s_range_are_refused_by_h_and_rho0():
+    """A particle volume or mass that overflows (h = 1e200 in 2D) ran with NaN and infinite
+    diagnostics and a healthy status; it is refused naming h and rho0."""
+    msg = _one_line(
+        lambda: jm.AxisAligned(cells=4, h=1e200), r"^h=1e\+200 and rho0=1 give particles of volume inf"
+    )
+    assert "beyond float64's range" in msg
+    _one_line(
+        lambda: jm.GasExpansion(h=1e-200, rho0=1e-200), r"^h=1e-200 and rho0=1e-200 give particles of volume"
+    )
+    jm.GasExpansion(h=1e-100)  # small, in range

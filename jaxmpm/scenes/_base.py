@@ -7,14 +7,36 @@ from collections.abc import Callable
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_int, check_positive
+from .._checks import check_int, check_positive, is_concrete
 from .._util import ONE_VALUE, check_real_fields
 from ..grid import Grid
 from ..materials import AbstractEOS, AbstractMaterial
 from ..particles import Body, seed_box
 from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
+
+
+def _check_particle_sizes(h, rho0, ppc: int, dim: int) -> None:
+    """Refuse a cell size and density whose particle volume ``(h / ppc)^dim`` or mass overflows to
+    infinity or underflows to 0 in float64 (a run of them gave NaN and infinite diagnostics with a
+    healthy status). Tracers pass.
+
+    Raises:
+        ValueError: naming ``h`` and ``rho0`` and the volume or mass they give.
+    """
+    if not (is_concrete(h) and is_concrete(rho0)):
+        return
+    with np.errstate(over="ignore", under="ignore"):
+        volume = (np.float64(h) / ppc) ** dim
+        mass = np.float64(rho0) * volume
+    if not (np.isfinite(mass) and mass > 0 and volume > 0):
+        raise ValueError(
+            f"h={float(h):.6g} and rho0={float(rho0):.6g} give particles of volume {volume:.3g} and mass "
+            f"{mass:.3g} ({ppc} per cell and axis, {dim}D), beyond float64's range: choose units in which "
+            "both are finite and not 0"
+        )
 
 
 class AbstractScene(eqx.Module):
@@ -106,6 +128,7 @@ class AbstractScene(eqx.Module):
             check_lattice(self.cells, self.ppc, self.pad, self.dim)
         check_positive("h", self.h)
         check_positive("rho0", self.rho0)
+        _check_particle_sizes(self.h, self.rho0, self.ppc, self.dim)
         self.material()  # a material checks its own parameters (gamma > 1, P0 > 0, E > 0, ...)
         if self.regions is not None:
             regions = self.regions()
