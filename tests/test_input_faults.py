@@ -70,6 +70,8 @@ ROWS = "".join(f"{t!r},{1 + t!r}\n" for t in TS.tolist())
             "t,x_free\n" + ROWS.replace(f",{1 + TS.tolist()[30]!r}\n", ",nan\n"),
             "line 32: x_free is nan; non-finite",
         ),
+        ("t,x_free\n0,1\n1e-3,2,7\n", "line 3: more fields than the header's 2 (t,x_free)"),
+        ('t,x_free\n0,1\n1e-3,"2\n', "is not a CSV text file (unexpected end of data)"),
     ],
     ids=[
         "binary",
@@ -89,6 +91,8 @@ ROWS = "".join(f"{t!r},{1 + t!r}\n" for t in TS.tolist())
         "too-many-steps",
         "too-much-memory",
         "nan-row",
+        "extra-field",
+        "open-quote",
     ],
 )
 def test_calibrate_data_faults(capsys, data, content, match):

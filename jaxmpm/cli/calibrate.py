@@ -125,7 +125,7 @@ def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.n
         line = raw[: e.start].count(b"\n") + 1
         raise not_text(f"line {line}, byte {e.start}, is not UTF-8 text") from None
     try:
-        reader = csv.DictReader(io.StringIO(text, newline=""))
+        reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)  # strict: a quote left open
         header = reader.fieldnames
         rows = [(reader.line_num, row) for row in reader]
     except csv.Error as e:
@@ -144,6 +144,11 @@ def read_trajectory(path: str, column: str = "x_free") -> tuple[np.ndarray, np.n
     columns = {str(h).strip(): h for h in header}
     t, x = [], []
     for line, row in rows:
+        if None in row:  # DictReader keeps the fields past the header's under None
+            raise UsageError(
+                f"--data: {path}, line {line}: more fields than the header's {len(header)} "
+                f"({','.join(names)})"
+            )
         values = []
         for name in ("t", column):
             cell = row.get(columns[name])
