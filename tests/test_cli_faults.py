@@ -463,3 +463,22 @@ def test_an_ensemble_of_a_cold_gas_runs_with_its_end_time_and_step_bound_given(c
     report = json.loads(capsys.readouterr().out)
     assert report["ok"] == 2 and report["timing"] == dict(t_end=0.05, cfl=0.5, max_steps=400)
     assert [r["t"] for r in report["results"]] == [0.05, 0.05]
+
+
+@pytest.mark.parametrize(
+    "options, named",
+    [
+        (["--t-end", "-1", "--max-steps", "5"], "--t-end must be > 0, got -1.0"),
+        (["--t-end", "1e-4", "--max-steps", "0"], "--max-steps must be an integer >= 1, got 0"),
+        (["--dt", "1e-5", "--steps", "2", "--cfl-limit", "-1"], "--cfl-limit must be > 0, got -1.0"),
+        (
+            ["--dt", "1e-5", "--steps", "2", "--artificial-cells", "-1"],
+            "--artificial-cells must be an integer >= 0, got -1",
+        ),
+    ],
+)
+def test_a_refused_option_is_named_as_typed(options, named, capsys):
+    """The library's checks name their arguments (``t_end``); the command line names the option the
+    user typed (``--t-end``)."""
+    assert main(["run", "gas-expansion", "--interpolator", "spq", *options]) == 2
+    assert one_line(capsys.readouterr().err) == f"jaxmpm: error: {named}"

@@ -21,6 +21,38 @@ class UsageError(Exception):
     """Bad input from the command line: one line, exit status 2."""
 
 
+OPTIONS = {
+    "dt": "--dt",
+    "steps": "--steps",
+    "t_end": "--t-end",
+    "cfl": "--cfl",
+    "max_steps": "--max-steps",
+    "cfl_limit": "--cfl-limit",
+    "artificial_cells": "--artificial-cells",
+    "devices": "--devices",
+    "chunk": "--chunk",
+    "checkpoint_every": "--checkpoint-every",
+}
+"""The library's argument names that the command line's options set, and those options."""
+
+
+def as_option(error: Exception) -> UsageError:
+    """A library's ``ValueError`` about an argument that an option sets, as the command line's error
+    naming the option the user typed (``t_end must be > 0`` as ``--t-end must be > 0``).
+
+    Args:
+        error: the library's error.
+
+    Returns:
+        The ``UsageError`` to raise.
+    """
+    text = str(error)
+    name, sep, rest = text.partition(" ")
+    if sep and name in OPTIONS and rest.startswith(("must ", "is ")):
+        text = f"{OPTIONS[name]} {rest}"
+    return UsageError(text)
+
+
 class CannotWrite(Exception):
     """Output that cannot be written (a full disk, a folder taken away, a read-only file system): one
     line ``cannot write WHAT: REASON``, exit status 74 (``EX_IOERR`` of ``sysexits.h``).

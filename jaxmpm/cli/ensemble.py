@@ -17,7 +17,7 @@ from jaxmpm.scenes.gas_slab import pad_for
 from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
-from ._common import UsageError, flags, print_json
+from ._common import UsageError, as_option, flags, print_json
 
 _MOST_STEPS = 2**31 - 1  # the bound of a step counter
 
@@ -133,7 +133,7 @@ def command(args) -> int:
             if args.max_steps is not None:
                 check_int("--max-steps", args.max_steps, 1)
         except ValueError as e:
-            raise UsageError(str(e)) from None
+            raise as_option(e) from None
         if args.t_end is not None and args.max_steps is not None:
             t_end, max_steps = args.t_end, args.max_steps
         else:
@@ -165,7 +165,7 @@ def command(args) -> int:
     try:
         model, _, steps, saveat = prepare(scene, interp, **timing, **settings)
     except ValueError as e:
-        raise UsageError(str(e)) from None
+        raise as_option(e) from None
     try:  # before the sample is drawn: nothing of the size of --members is allocated first
         _memory.check_run(model, steps, saveat, members=args.members)
     except ValueError as e:
@@ -179,7 +179,7 @@ def command(args) -> int:
     try:
         ens = jm.ensemble(scene, interp, vary, **timing, **settings)
     except ValueError as e:
-        raise UsageError(str(e)) from None
+        raise as_option(e) from None
     wall = time.perf_counter() - t0
     st = ens.solution.state
     results = []

@@ -22,6 +22,7 @@ from ._common import (
     CannotWrite,
     UsageError,
     add_process_options,
+    as_option,
     devices_option,
     flags,
     floats,
@@ -189,7 +190,7 @@ def command(args) -> int:
         try:
             _check_out(args.out, overwrite=args.overwrite, option="--out")
         except ValueError as e:
-            raise UsageError(str(e)) from None
+            raise as_option(e) from None
     vtk_made = args.vtk is not None and not pathlib.Path(args.vtk).exists()
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
@@ -226,7 +227,7 @@ def command(args) -> int:
                 _breakdown_json(args, scene, failed, viscosity, vtk)
                 raise Breakdown(failed, dt=args.dt) from None
     except ValueError as e:
-        raise UsageError(str(e)) from None
+        raise as_option(e) from None
     sol = local_solution(sol)
     grad = grad_s = None
     if names is not None:
