@@ -846,6 +846,9 @@ def _check_tol(tol) -> None:
 def _check_names(scene, names) -> None:
     if not names:
         raise ValueError(f"fit must name at least one constant; fittable: {', '.join(fittable(scene))}")
+    for n in names:
+        if isinstance(n, str) and n not in type(scene).parameters() and n != "dt":
+            raise ValueError(f"unknown parameter {n!r} for a fit; fittable: {', '.join(fittable(scene))}")
     check_names(scene, names)
     static, idle = static_parameters(scene), unused(scene)
     for n in names:

@@ -383,3 +383,23 @@ def test_a_member_is_measured_with_its_own_scene():
         ens.member_scene(jm.VibratingBar(), 0)
     with pytest.raises(ValueError, match="i must be a member's index"):
         ens.member_scene(scene, 2)
+
+
+def test_calibrate_gurney_slab_needs_fit_and_names_what_can_be_fitted(capsys, plate_data):
+    """gas-slab's default --fit (gamma,P0) is not the Gurney slab's: without --fit the command says
+    what can be fitted, not that P0 (which the user never typed) is unknown."""
+    usage(
+        capsys,
+        [*GURNEY, "--data", plate_data],
+        "--fit: name the constants to fit for gurney-slab; fittable with these parameters: burn_width, L",
+    )
+
+
+def test_a_fit_of_an_unknown_name_lists_what_can_be_fitted():
+    """The list is of the fittable constants, not of every differentiable parameter (h and dt cannot
+    be fitted)."""
+    slab = jm.GasSlab(cells=8, h=1 / 8, pad=24)
+    with pytest.raises(
+        ValueError, match=r"^unknown parameter 'beta' for a fit; fittable: P0, gamma, p_atm, rho0$"
+    ):
+        cal.calibrate(slab, jm.CPDI(), [0.0, 1e-4], [1.0, 1.0], fit=("beta",), dt=1e-5)

@@ -40,7 +40,12 @@ def add_parser(subparsers) -> None:
         metavar="FILE.csv",
         help="header and columns t,x_free (gurney-slab: t,v_plate)",
     )
-    p.add_argument("--fit", default="gamma,P0", metavar="NAME[,NAME...]", help="parameters to fit")
+    p.add_argument(
+        "--fit",
+        default=None,
+        metavar="NAME[,NAME...]",
+        help="parameters to fit (gas-slab: gamma,P0 by default; gurney-slab: required)",
+    )
     p.add_argument(
         "--start",
         action="append",
@@ -308,7 +313,13 @@ def command(args) -> int:
     first = start_processes(args)
     scene = _assign.scene(args.scene, args.params, options=flags(args))
     column = jm.calibrate.observable(scene)
-    names = fit_names(scene, args.fit)
+    if args.fit is None and args.scene != "gas-slab":
+        raise UsageError(
+            f"--fit: name the constants to fit for {args.scene}; fittable with these parameters: "
+            f"{', '.join(jm.calibrate.fittable(scene))} (explosive=gamma-law adds D, gamma, rho0; "
+            "explosive=jwl the JWL constants)"
+        )
+    names = fit_names(scene, "gamma,P0" if args.fit is None else args.fit)
     starts = [_assign.numbers(text, "--start") for text in args.start] if args.start else [{}]
     given = _assign.names(args.params)
     for start in starts:
