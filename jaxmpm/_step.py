@@ -212,6 +212,8 @@ def check_dt(dt, batch: str = "") -> None:
     Raises:
         ValueError: ``dt`` is not a real number, not finite, not > 0, or has a shape.
     """
+    if isinstance(dt, bool | np.bool_):  # a bool is a number to NumPy (True: 1.0), not a time step
+        raise ValueError(f"dt must be one number > 0 (the time step), got {dt!r}")
     check_positive("dt", dt)
     check_scalar("dt", dt, batch)
 
@@ -347,6 +349,8 @@ class Setup(eqx.Module):
 def check_devices(devices) -> tuple[jax.Device, ...]:
     """``devices`` as a tuple of distinct JAX devices, or a ``ValueError`` naming what is allowed."""
     allowed = "a non-empty sequence of distinct JAX devices (e.g. jax.devices()) or a device count"
+    if isinstance(devices, str):  # a sequence of letters, not of devices
+        raise ValueError(f"devices must be {allowed}, got the string {devices!r}")
     try:
         devices = tuple(devices)
     except TypeError:

@@ -303,6 +303,8 @@ def ensemble(
             raise ValueError(
                 f"vary[{k!r}] must be a 1D sequence of real numbers, one per member, got {brief(v)}"
             )
+        if np.asarray(v).dtype == np.bool_:  # True and False are not parameter values
+            raise ValueError(f"vary[{k!r}] must be real numbers, one per member, got bools {brief(v)}")
         arrays[k] = np.asarray(v, dtype=np.float64)
     sizes = {k: a.shape for k, a in arrays.items()}
     if any(a.ndim != 1 for a in arrays.values()) or len(set(sizes.values())) != 1:
@@ -314,7 +316,12 @@ def ensemble(
     if bad:
         raise ValueError(f"vary values must be finite; not finite in {bad}")
     _check_ranges(scene, arrays)
-    simulate_kwargs.pop("throw", None)
+    throw = simulate_kwargs.pop("throw", False)
+    if throw is not False:
+        raise ValueError(
+            f"throw must be False or left out in an ensemble (each member's breakdown is read from its "
+            f"status, Ensemble.failures()), got {throw!r}"
+        )
     model, dt, steps, saveat = prepare(scene, interpolator, **simulate_kwargs)
     _memory.check_run(model, steps, saveat, members=n)  # before the batch is laid out
     block = checkpoint_block(simulate_kwargs.get("checkpoint", False), steps)

@@ -498,3 +498,13 @@ def test_fuzz_assignments_end_in_a_status_and_one_line(capsys, data, no_runs):
             assert len(lines) == 1 and lines[0].startswith("jaxmpm:"), (argv, captured.err)
         seen[rc] = seen.get(rc, 0) + 1
     assert seen[2] > 100 and seen["accepted"] > 10, seen  # the fuzz reaches both sides
+
+
+def test_an_empty_start_is_refused(capsys, data):
+    _, write = data
+    path = write("ok.csv", "t,x_free\n0,1\n1e-3,1.01\n")
+    usage(
+        capsys,
+        ["calibrate", "gas-slab", "--data", path, "--start="],
+        "--start takes NAME=VALUE[,NAME=VALUE...], got an empty value",
+    )

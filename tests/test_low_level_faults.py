@@ -240,3 +240,21 @@ def test_a_scene_of_another_float_type_is_refused_by_name():
     with pytest.raises(ValueError, match=match):
         jm.Model(old, jm.MPQ(), jm.FLIP())
     assert int(jm.simulate(scene, jm.MPQ(), dt=DT, steps=1).state.step) == 1
+
+
+def test_a_bool_is_not_a_time_step_and_a_string_not_devices():
+    """``dt=True`` ran as 1.0; ``devices="cpu"`` was reported as the letters ('c', 'p', 'u')."""
+    scene = jm.GasExpansion(cells=4)
+    with pytest.raises(ValueError, match=r"^dt must be one number > 0 \(the time step\), got True$"):
+        raw(jm.simulate)(scene, jm.MPQ(), dt=True, steps=1)
+    with pytest.raises(ValueError, match=r"devices must be .* got the string 'cpu'$"):
+        raw(jm.simulate)(scene, jm.MPQ(), dt=DT, steps=1, devices="cpu")
+
+
+def test_an_ensemble_refuses_throw_and_bools():
+    """An ensemble reads each member's breakdown from its status: ``throw=True`` was dropped silently."""
+    scene = jm.GasExpansion(cells=4)
+    with pytest.raises(ValueError, match=r"^throw must be False or left out in an ensemble .* got True$"):
+        raw(jm.ensemble)(scene, jm.MPQ(), {"beta": [100.0, 200.0]}, dt=DT, steps=1, throw=True)
+    with pytest.raises(ValueError, match=r"^vary\['beta'\] must be real numbers, one per member, got bools"):
+        raw(jm.ensemble)(scene, jm.MPQ(), {"beta": [True, False]}, dt=DT, steps=1)

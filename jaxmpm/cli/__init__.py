@@ -8,8 +8,8 @@ Exit statuses: 0; 2 for bad input; 3 for a run that broke down; 74 (``EX_IOERR``
 for output that cannot be written (a full disk under ``--out``, ``--vtk`` or standard output: one
 line ``jaxmpm: error: cannot write WHAT: REASON``; a file saved before is intact, and a ``--vtk``
 series that fails leaves its folder as it was); 130 for Ctrl-C (one line, from the moment ``console``
-runs); 141 when stdout is closed by its reader. Each failure is one line on stderr, never a
-traceback.
+runs); 141 when stdout is closed by its reader; 1 for ``bench`` when one of its benchmark processes
+fails (one line naming it). Each failure is one line on stderr, never a traceback.
 """
 
 import contextlib
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
         cannot be written (one line, ``jaxmpm: error: cannot write WHAT: REASON``: a full disk under
         ``--out``, ``--vtk`` or standard output); 130 for Ctrl-C (one line: the step reached and,
         with ``--out``, the file that holds it); 141 when stdout is closed by its reader
-        (``jaxmpm ... | head``), silently.
+        (``jaxmpm ... | head``), silently; 1 for ``bench`` when one of its benchmark processes fails.
     """
     jax.config.update("jax_enable_x64", True)
     main_thread = threading.current_thread() is threading.main_thread()

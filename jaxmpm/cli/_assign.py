@@ -140,6 +140,8 @@ def numbers(text: str, option: str) -> dict[str, float]:
             given twice.
     """
     expected = f"{option} takes NAME=VALUE[,NAME=VALUE...]"
+    if not text.strip():  # an empty --start= would be read as no start values at all
+        raise UsageError(f"{expected}, got an empty value")
     out = {}
     for key, raw in split(comma_list(text, option), expected, f"{option}: "):
         try:
