@@ -8,7 +8,16 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from ._checks import brief, check_bool, check_finite, check_int, check_scalar, is_concrete, python_int
+from ._checks import (
+    brief,
+    check_bool,
+    check_finite,
+    check_int,
+    check_nonnegative,
+    check_scalar,
+    is_concrete,
+    python_int,
+)
 from ._util import adjugate, corner_signs, det
 from .materials import DEVIATORIC_KEYS, AbstractEOS
 from .particles import Body, State, parallelogram_corners
@@ -68,10 +77,13 @@ def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> d
         particle axis; ``None`` for a scene with no exact solution, or none at ``t``.
 
     Raises:
-        ValueError: ``scene`` is not a scene, or ``body`` is not a ``Body``.
+        ValueError: ``scene`` is not a scene, ``body`` is not a ``Body``, or a concrete ``t`` is not
+            one finite number >= 0.
     """
     _check_scene(scene)
     _check_body(body)
+    check_scalar("t", t)
+    check_nonnegative("t", t)
     if scene.exact is None or not exact_holds(scene, t):
         return None
     return _exact_fields(scene, body.X, t)

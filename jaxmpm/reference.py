@@ -115,15 +115,30 @@ class SlabSolution(eqx.Module):
     X: Float[Array, " cells"]
     stats: dict
 
-    def F_at(self, X: Float[Array, "*points"]) -> Float[Array, " nt *points"]:
-        """``F(X, t)`` at any reference positions, linear between cell centres (constant at the ends).
+    def F_at(self, X: Float[ArrayLike, "*points"]) -> Float[Array, " nt *points"]:
+        """``F(X, t)`` at any reference positions, linear between cell centres (constant at the ends,
+        between the slab's end and the centre of its end cell).
 
         Args:
-            X: reference positions.
+            X: reference positions in the slab, ``0 <= X <= L``.
 
         Returns:
             ``F`` at ``X`` at every time of ``ts``.
+
+        Raises:
+            ValueError: a concrete ``X`` that is not finite or lies outside the slab (its cells span
+                ``[0, L]``: ``L`` is the last centre plus half a cell).
         """
+        check_finite("X", X)
+        if is_concrete(X):
+            half = float(self.X[0])  # the centres are (i + 1/2) dX
+            end = float(self.X[-1]) + half
+            x = np.asarray(X, dtype=float)
+            if x.size and not (x.min() >= 0.0 and x.max() <= end * (1 + 1e-12)):
+                raise ValueError(
+                    f"X must lie in the slab, 0 <= X <= {end:.6g}, got values from {x.min():.6g} to "
+                    f"{x.max():.6g}"
+                )
         return jax.vmap(lambda F: jnp.interp(X, self.X, F))(self.F)
 
 

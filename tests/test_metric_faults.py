@@ -203,3 +203,25 @@ def test_a_state_that_is_not_finite_has_no_zero_error(runs):
         )
         == 0.0
     )
+
+
+def test_exact_fields_refuse_a_time_that_is_not_one(runs):
+    """A NaN time gave NaN fields, a negative one an F of -199; both are refused by name."""
+    scene, _, ok = runs
+    for t, match in (
+        (float("nan"), "t must be finite, got nan"),
+        (-1.0, r"t must be >= 0, got -1.0"),
+        ([0.0, 1.0], r"t must be one number"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            raw(jm.metrics.exact_fields)(scene, ok.body, t)
+    assert jm.metrics.exact_fields(scene, ok.body, DT)["F"].shape == ok.state.F.shape
+
+
+def test_the_slab_references_f_is_read_inside_the_slab_only():
+    ref = jm.reference.gas_slab(jm.GasSlab(cells=8, h=1 / 8, pad=24), [0.0, 1e-3], cells=8)
+    assert ref.F_at(np.array([0.0, 0.5, 1.0])).shape == (2, 3)
+    with pytest.raises(ValueError, match=r"X must lie in the slab, 0 <= X <= 1, got values from 5 to 5"):
+        raw(type(ref).F_at)(ref, 5.0)
+    with pytest.raises(ValueError, match="X must be finite, got nan"):
+        raw(type(ref).F_at)(ref, float("nan"))
