@@ -1118,6 +1118,13 @@ def _load(path: pathlib.Path, on_devices: bool = True):
             a = fields.get(name)
             if a is not None and not np.all(np.isfinite(a)):
                 raise ValueError(f"{path}: state.{name} is not finite, yet its status is 0 (healthy)")
+        J = np.linalg.det(np.asarray(fields["F"], dtype=np.float64))  # every step checks det F > 0 too
+        if not np.all(J > 0):
+            p = int(np.argmax(~(J > 0)))
+            raise ValueError(
+                f"{path}: particle {p} has det F = {J[p]:.6g} <= 0, yet its status is 0 (healthy); the file "
+                "was edited or is damaged"
+            )
     history = ts = None
     held = sorted(k for k in arrays if k.startswith("history."))
     if saveat.every is None:

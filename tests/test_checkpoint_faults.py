@@ -92,6 +92,15 @@ def test_a_healthy_state_that_is_not_finite(good, tmp_path, capsys):
     assert_refused(variant(good, tmp_path, state__x=x), capsys, "state.x is not finite, yet its status is 0")
 
 
+def test_a_healthy_state_with_an_inverted_particle(good, tmp_path, capsys):
+    """Every step checks det F > 0; a file whose healthy state has det F <= 0 was edited or damaged."""
+    F = arrays_of(good)["state.F"].copy()
+    F[2] = -F[2]
+    assert_refused(
+        variant(good, tmp_path, state__F=F), capsys, "particle 2 has det F = ", "<= 0, yet its status is 0"
+    )
+
+
 def test_a_step_past_the_runs_steps(good, tmp_path, capsys):
     assert_refused(variant(good, tmp_path, meta={"steps": 10}), capsys, "step 20 of a run of 10 steps")
 
