@@ -267,6 +267,14 @@ def test_ensemble_faults(capsys, extra, match):
     usage(capsys, ENS + extra, match)
 
 
+def test_ensemble_refuses_a_range_with_an_end_the_scene_refuses(capsys):
+    """A range's ends are checked whether or not --dt and --steps are given (with them, only the
+    drawn values were, so a bad range passed when no draw fell in its bad part)."""
+    for timing in ([], ["--dt", "1e-5", "--steps", "2"]):
+        argv = ["ensemble", "gas-expansion", "--members", "4", "--vary", "h=0:1", *timing]
+        usage(capsys, argv, "--vary h=0:1: at h=0, h must be > 0, got 0.0")
+
+
 def test_ensemble_refuses_more_members_than_memory_before_allocating(capsys, monkeypatch):
     argv = ["ensemble", "gas-slab", "--vary", "gamma=1.3:1.5", "--members", "100000000"]
     usage(capsys, argv, "--members 100000000: 100,000,000 members of the run (64 particles, 417 grid nodes)")

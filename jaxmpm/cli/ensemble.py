@@ -109,6 +109,12 @@ def command(args) -> int:
                 how = "a fixed scene parameter" if k in fixed else "varied by --vary"
                 raise UsageError(f"--from-fit: {k} is fitted there and also {how}: give it once")
         bounds.update(fit["bounds"])
+    for k, (lo, hi) in ranges.items():  # both ends are values a member may take (uniform on [lo, hi))
+        for end in (lo, hi):
+            try:
+                type(scene)(**{**scene.parameter_values(), k: end})
+            except ValueError as e:
+                raise UsageError(f"--vary {k}={lo:g}:{hi:g}: at {k}={end:g}, {e}") from None
     if args.members < 1:
         raise UsageError(f"--members must be an integer >= 1, got {args.members}")
     if args.seed < 0:
