@@ -70,7 +70,7 @@ import numpy as np
 from jax.experimental import multihost_utils
 
 from . import status as st_bits
-from ._checks import check_bool, check_int, check_keywords
+from ._checks import check_bool, check_int, check_keywords, is_concrete
 from ._files import write_whole
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
 from ._step import initial_state, place_particles, setup, shard_particles
@@ -590,6 +590,22 @@ def run(scene: AbstractScene, interpolator: AbstractInterpolator, **kwargs) -> S
 
 
 @typing.no_type_check  # validates every argument itself, raising ValueError
+def _check_concrete(scene, dt) -> None:
+    """Refuse a scene or ``dt`` traced by a JAX transformation: a long run is driven from Python (its
+    chunks, progress and files), so it runs outside ``jax.jit``, ``jax.grad`` and ``jax.vmap``.
+
+    Raises:
+        ValueError: a traced value, naming what to use instead.
+    """
+    leaves = jax.tree.leaves(eqx.filter(scene, eqx.is_array)) + [dt]
+    if not all(is_concrete(a) for a in leaves):
+        raise ValueError(
+            "a long run is driven from Python (chunks, progress, files) and runs outside jax.jit, "
+            "jax.grad and jax.vmap; inside them use jm.simulate (its checkpoint= bounds reverse mode's "
+            "memory), or jm.ensemble for many values"
+        )
+
+
 def run_timed(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
@@ -662,6 +678,7 @@ def run_timed(
             "time with jaxmpm.simulate(t_end=..., max_steps=...)"
         )
     _check_switches(progress, throw)
+    _check_concrete(scene, dt)
     check_int("chunk", chunk, 1)
     chunk = int(chunk)  # a NumPy integer too: the chunk is static, and saved with the run
     if checkpoint_every is not None:

@@ -258,3 +258,16 @@ def test_an_ensemble_refuses_throw_and_bools():
         raw(jm.ensemble)(scene, jm.MPQ(), {"beta": [100.0, 200.0]}, dt=DT, steps=1, throw=True)
     with pytest.raises(ValueError, match=r"^vary\['beta'\] must be real numbers, one per member, got bools"):
         raw(jm.ensemble)(scene, jm.MPQ(), {"beta": [True, False]}, dt=DT, steps=1)
+
+
+def test_a_long_run_under_a_transformation_says_what_to_use():
+    """A long run is driven from Python; under jax.grad it raised a ConcretizationTypeError."""
+
+    def final_F(beta):
+        scene = jm.GasExpansion(cells=4, beta=beta)
+        return long_run.run(scene, jm.MPQ(), dt=DT, steps=2, progress=False).state.F.sum()
+
+    match = r"a long run is driven from Python .* jax.vmap; inside them use jm.simulate"
+    with pytest.raises(ValueError, match=match):
+        jax.grad(final_F)(200.0)
+    assert np.isfinite(float(final_F(200.0)))
