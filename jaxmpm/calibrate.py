@@ -65,6 +65,7 @@ import time
 import warnings
 from collections.abc import Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -617,6 +618,7 @@ def calibrate(
             nothing is returned.
     """
     _check_parts(scene, interpolator)
+    _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
     if method not in METHODS:
@@ -720,6 +722,7 @@ def calibrate_each(
         CalibrationError: the start's run breaks down.
     """
     _check_parts(scene, interpolator)
+    _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
     check_int("iterations", iterations, 1)
@@ -774,6 +777,16 @@ def calibrate_each(
             )
         )
     return fits
+
+
+def _check_concrete(scene) -> None:
+    """Refuse a scene traced by a JAX transformation: a fit is driven from Python (its iterations,
+    starts and reports), so it runs outside ``jax.jit``, ``jax.grad`` and ``jax.vmap``."""
+    if not all(is_concrete(a) for a in jax.tree.leaves(eqx.filter(scene, eqx.is_array))):
+        raise ValueError(
+            "a fit is driven from Python (iterations, starts, reports) and runs outside jax.jit, "
+            "jax.grad and jax.vmap; differentiate the model with jm.calibrate.trajectory or jm.simulate"
+        )
 
 
 def _check_parts(scene, interpolator) -> None:
@@ -1657,6 +1670,7 @@ def information(
         CalibrationError: the run at the scene's constants breaks down.
     """
     _check_parts(scene, interpolator)
+    _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
     check_scalar("noise", noise, " (one standard deviation, in the units of the data)")
@@ -1718,6 +1732,7 @@ def profile(
             line at or below a bound ``p_off``.
     """
     _check_parts(scene, interpolator)
+    _check_concrete(scene)
     if not isinstance(fit, Fit):
         raise ValueError(f"fit must be the Fit that calibrate returned, got {brief(fit)}")
     names = tuple(fit.fitted)

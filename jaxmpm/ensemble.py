@@ -30,7 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
 from . import status as st_bits
-from ._checks import brief, is_real
+from ._checks import brief, is_concrete, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
 from ._step import check_scene
 from .interpolators import AbstractInterpolator
@@ -274,6 +274,11 @@ def ensemble(
             line): nothing is returned.
     """
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
+    if not all(is_concrete(a) for a in jax.tree.leaves(eqx.filter(scene, eqx.is_array))):
+        raise ValueError(
+            "jm.ensemble batches its members itself, in one compiled call: call it outside jax.vmap, "
+            "jax.jit and jax.grad, with the values to run in vary= (or jax.vmap over jm.simulate)"
+        )
     if not isinstance(vary, Mapping):
         raise ValueError(
             "vary must be a dict of parameter name to values, one per member (such as "

@@ -271,3 +271,26 @@ def test_a_long_run_under_a_transformation_says_what_to_use():
     with pytest.raises(ValueError, match=match):
         jax.grad(final_F)(200.0)
     assert np.isfinite(float(final_F(200.0)))
+
+
+def test_a_fit_and_an_ensemble_under_a_transformation_say_what_to_use():
+    """Each drives its own compiled calls from Python; under jax.grad or jax.vmap they raised JAX's
+    ConcretizationTypeError."""
+    ts = np.linspace(0.0, 1e-3, 3)
+
+    def loss(gamma):
+        slab = jm.GasSlab(cells=8, h=1 / 8, pad=24, gamma=gamma)
+        return jm.calibrate.calibrate(slab, jm.CPDI(), ts, np.ones(3), dt=DT).loss
+
+    with pytest.raises(
+        ValueError, match=r"^a fit is driven from Python .* use jm.calibrate.trajectory or jm.simulate$"
+    ):
+        jax.grad(loss)(1.4)
+
+    def status(beta):
+        return jm.ensemble(
+            jm.GasExpansion(cells=4, beta=beta), jm.MPQ(), {"P0": [3e5, 4e5]}, dt=DT, steps=1
+        ).status
+
+    with pytest.raises(ValueError, match=r"^jm.ensemble batches its members itself, in one compiled call"):
+        jax.vmap(status)(jnp.array([100.0, 200.0]))
