@@ -283,7 +283,7 @@ def test_a_fit_and_an_ensemble_under_a_transformation_say_what_to_use():
         return jm.calibrate.calibrate(slab, jm.CPDI(), ts, np.ones(3), dt=DT).loss
 
     with pytest.raises(
-        ValueError, match=r"^a fit is driven from Python .* use jm.calibrate.trajectory or jm.simulate"
+        ValueError, match=r"^a fit is driven from Python .* with jm.calibrate.trajectory or jm.simulate"
     ):
         jax.grad(loss)(1.4)
 
