@@ -224,7 +224,8 @@ class Fit:
         iterations: iterations taken.
         history: loss per iteration and start, shape ``(iterations + 1, starts)`` (NaN for a start
             that broke down).
-        starts_fitted: every start's fitted values, name to array ``(starts,)``.
+        starts_fitted: every start's fitted values, name to array ``(starts,)``; for a start in
+            ``failed_starts``, the values where it stopped, which are not a fit.
         wall_s: wall time of the fit (compilation included).
         failed_starts: start index to why it stopped (its run broke down, or every step toward a lower
             loss from where it stood did); the others went on.
