@@ -27,6 +27,19 @@ def is_concrete(value) -> bool:
     return not isinstance(value, jax.core.Tracer)
 
 
+def any_traced(tree) -> bool:
+    """Whether any array of ``tree`` (a scene, a model, ...) is a JAX tracer: the call is inside
+    ``jax.jit``, ``jax.grad`` or ``jax.vmap`` with respect to it.
+
+    Args:
+        tree: a pytree.
+
+    Returns:
+        ``True`` where a leaf is a tracer.
+    """
+    return not all(is_concrete(a) for a in jax.tree.leaves(tree))
+
+
 def is_real(value) -> bool:
     """Whether ``value`` is a real number or an array of them (bool, integer or float dtype).
 

@@ -65,7 +65,6 @@ import time
 import warnings
 from collections.abc import Sequence
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -73,6 +72,7 @@ import optax
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._checks import (
+    any_traced,
     brief,
     check_bool,
     check_finite,
@@ -783,7 +783,7 @@ def calibrate_each(
 def _check_concrete(scene) -> None:
     """Refuse a scene traced by a JAX transformation: a fit is driven from Python (its iterations,
     starts and reports), so it runs outside ``jax.jit``, ``jax.grad`` and ``jax.vmap``."""
-    if not all(is_concrete(a) for a in jax.tree.leaves(eqx.filter(scene, eqx.is_array))):
+    if any_traced(scene):
         raise ValueError(
             "a fit is driven from Python (iterations, starts, reports) and runs outside jax.jit, "
             "jax.grad and jax.vmap; differentiate the model with jm.calibrate.trajectory or jm.simulate"

@@ -30,7 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
 from . import status as st_bits
-from ._checks import brief, is_concrete, is_real
+from ._checks import any_traced, brief, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
 from ._step import check_scene
 from .interpolators import AbstractInterpolator
@@ -274,7 +274,7 @@ def ensemble(
             line): nothing is returned.
     """
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
-    if not all(is_concrete(a) for a in jax.tree.leaves(eqx.filter(scene, eqx.is_array))):
+    if any_traced(scene):
         raise ValueError(
             "jm.ensemble batches its members itself, in one compiled call: call it outside jax.vmap, "
             "jax.jit and jax.grad, with the values to run in vary= (or jax.vmap over jm.simulate)"

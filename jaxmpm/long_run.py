@@ -70,7 +70,7 @@ import numpy as np
 from jax.experimental import multihost_utils
 
 from . import status as st_bits
-from ._checks import check_bool, check_int, check_keywords, is_concrete
+from ._checks import any_traced, check_bool, check_int, check_keywords
 from ._files import write_whole
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
 from ._step import initial_state, place_particles, setup, shard_particles
@@ -597,8 +597,7 @@ def _check_concrete(scene, dt) -> None:
     Raises:
         ValueError: a traced value, naming what to use instead.
     """
-    leaves = jax.tree.leaves(eqx.filter(scene, eqx.is_array)) + [dt]
-    if not all(is_concrete(a) for a in leaves):
+    if any_traced((scene, dt)):
         raise ValueError(
             "a long run is driven from Python (chunks, progress, files) and runs outside jax.jit, "
             "jax.grad and jax.vmap; inside them use jm.simulate (its checkpoint= bounds reverse mode's "
