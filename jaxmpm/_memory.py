@@ -118,17 +118,18 @@ def readable(nbytes: int | float) -> str:
     raise AssertionError  # pragma: no cover
 
 
-def check_lattice(cells: int, ppc: int, pad: int, dim: int) -> None:
+def check_lattice(cells, ppc, pad, dim) -> None:
     """Refuse, before the host builds it, a scene's lattice of particles that would not fit in the
     host's memory (a body of regions is laid out with NumPy when the scene is made).
 
     Args:
-        cells, ppc, pad, dim: the scene's sizes.
+        cells, ppc, pad, dim: the scene's sizes (Python or NumPy integers).
 
     Raises:
         ValueError: the lattice's points and the grid's nodes need more than the host has, naming
             the sizes to reduce.
     """
+    cells, ppc, pad, dim = int(cells), int(ppc), int(pad), int(dim)  # Python ints do not overflow
     points = (cells * ppc) ** dim
     nodes = (cells + 2 * pad + 1) ** dim
     nbytes = _WORD * (points * (dim + 6) + nodes)

@@ -272,7 +272,7 @@ def test_ensemble_refuses_a_range_with_an_end_the_scene_refuses(capsys):
     drawn values were, so a bad range passed when no draw fell in its bad part)."""
     for timing in ([], ["--dt", "1e-5", "--steps", "2"]):
         argv = ["ensemble", "gas-expansion", "--members", "4", "--vary", "h=0:1", *timing]
-        usage(capsys, argv, "--vary h=0:1: at h=0, h must be > 0, got 0.0")
+        usage(capsys, argv, "--vary: h must be > 0, got 0.0 (at h=0, an end of the range h=0:1)")
 
 
 def test_ensemble_refuses_more_members_than_memory_before_allocating(capsys, monkeypatch):

@@ -114,7 +114,9 @@ def command(args) -> int:
             try:
                 type(scene)(**{**scene.parameter_values(), k: end})
             except ValueError as e:
-                raise UsageError(f"--vary {k}={lo:g}:{hi:g}: at {k}={end:g}, {e}") from None
+                raise UsageError(
+                    f"--vary: {e} (at {k}={end:g}, an end of the range {k}={lo:g}:{hi:g})"
+                ) from None
     if args.members < 1:
         raise UsageError(f"--members must be an integer >= 1, got {args.members}")
     if args.seed < 0:

@@ -18,7 +18,7 @@ from ..particles import Body, seed_box
 from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
 
 
-def _check_particle_sizes(h, rho0, ppc: int, dim: int) -> None:
+def _check_particle_sizes(h, rho0, ppc, dim) -> None:
     """Refuse a cell size and density whose particle volume ``(h / ppc)^dim`` or mass overflows to
     infinity or underflows to 0 in float64 (a run of them gave NaN and infinite diagnostics with a
     healthy status). Tracers pass.
