@@ -1129,6 +1129,13 @@ def _load(path: pathlib.Path, on_devices: bool = True):
         )
     if meta["step"] > meta["steps"]:
         raise ValueError(f"{path}: its meta says step {meta['step']} of a run of {meta['steps']} steps")
+    # the step that broke down follows the kept (last good) state; 0 where the initial state failed
+    fail = int(state.fail_step)
+    if int(state.status) != 0 and fail != meta["step"] + 1 and not (fail == 0 == meta["step"]):
+        raise ValueError(
+            f"{path}: state.status is {int(state.status)} (a breakdown) but state.fail_step is {fail}, "
+            f"not the step after the kept state's ({meta['step'] + 1}); the file was edited or is damaged"
+        )
     if int(state.status) == 0:  # a healthy state is finite: every step checks it
         for name in ("x", "v", "F", "sigma", "e"):
             a = fields.get(name)

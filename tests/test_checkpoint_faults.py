@@ -101,6 +101,18 @@ def test_a_healthy_state_with_an_inverted_particle(good, tmp_path, capsys):
     )
 
 
+def test_a_breakdown_at_a_step_that_does_not_follow_the_kept_state(good, tmp_path, capsys):
+    """A broken run keeps its last good state; the step that broke down is the next one. A file whose
+    status says breakdown with another failing step (0 here, after 20 good steps) was edited: it was
+    reported as a breakdown "at step -1"."""
+    status = np.asarray(4, dtype=arrays_of(good)["state.status"].dtype)
+    fail = np.asarray(0, dtype=arrays_of(good)["state.fail_step"].dtype)
+    path = variant(good, tmp_path, meta={"status": 4}, state__status=status, state__fail_step=fail)
+    assert_refused(
+        path, capsys, "state.status is 4 (a breakdown) but state.fail_step is 0, not the step after"
+    )
+
+
 def test_a_step_past_the_runs_steps(good, tmp_path, capsys):
     assert_refused(variant(good, tmp_path, meta={"steps": 10}), capsys, "step 20 of a run of 10 steps")
 

@@ -252,7 +252,8 @@ def command(args) -> int:
             else:
                 extra += f"  F_max_rel={r['F_max_rel']:.3g}"
         fail = (
-            f"  FAILED at step {r['failure']['step']}: {r['failure']['quantities'][0]}"
+            f"  FAILED at step {r['failure']['step']}, particle {r['failure']['particle']}: "
+            f"{' and '.join(r['failure']['quantities'])}"
             if "failure" in r
             else ""
         )
