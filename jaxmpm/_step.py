@@ -763,7 +763,6 @@ def check_belongs(model: Model, setup, state=_SETUP_ONLY) -> None:
         ValueError: ``setup`` or ``state`` is not a ``Setup`` or ``State``, or is another run's: the
             message names the argument, the first entry that differs and what it should be.
     """
-    check_model(model)
     if not isinstance(setup, Setup):
         raise ValueError(f"setup must be the Setup of model, jm.setup(model), got {brief(setup)}")
     if state is not _SETUP_ONLY and not isinstance(state, State):

@@ -314,3 +314,10 @@ def test_particles_beyond_float64s_range_are_refused_by_h_and_rho0():
         lambda: jm.GasExpansion(h=1e-200, rho0=1e-200), r"^h=1e-200 and rho0=1e-200 give particles of volume"
     )
     jm.GasExpansion(h=1e-100)  # small, in range
+
+
+def test_a_manufactured_field_must_be_a_function():
+    with pytest.raises(
+        ValueError, match=r"displacement_fn must be a function u\(scene, X, t\) -> u, or None, got int 3"
+    ):
+        _raw(jm.Manufactured, displacement_fn=3).__check_init__()

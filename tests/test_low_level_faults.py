@@ -213,16 +213,6 @@ def test_write_series_names_what_it_was_given(tmp_path):
     assert list(tmp_path.iterdir()) == []  # nothing written before the refusals
 
 
-def test_a_manufactured_field_must_be_a_function():
-    scene = object.__new__(jm.Manufactured)  # the fields as given (the suite's type checks refuse 3 first)
-    for k, v in {**jm.Manufactured.parameters(), "displacement_fn": 3}.items():
-        object.__setattr__(scene, k, v)
-    with pytest.raises(
-        ValueError, match=r"displacement_fn must be a function u\(scene, X, t\) -> u, or None, got int 3"
-    ):
-        scene.__check_init__()
-
-
 def test_a_scene_of_another_float_type_is_refused_by_name():
     """A scene made while float64 was off holds float32 arrays; run after switching float64 on it
     failed inside the step ("cond branches must have equal output types"). It is refused, naming the
