@@ -315,6 +315,28 @@ def test_cli_blocked_fit_exits_3_naming_the_breakdown_and_pad(tmp_path, capsys):
     assert "particle left the grid" in lines[0] and "raise pad (now 52)" in lines[0]
 
 
+def test_cli_blocked_fit_with_json_prints_why_and_an_ensemble_refuses_it(tmp_path, capsys):
+    """With ``--json`` a fit without an answer still prints one object (``fitted`` null, ``error`` the
+    stderr line's reason), and ``ensemble --from-fit`` refuses that file by saying so."""
+    ts = np.linspace(0.0, 12e-3, 61)
+    x = np.asarray(jm.reference.gas_slab(jm.GasSlab(), ts, cells=400).x_free)
+    data = _csv(tmp_path / "traj.csv", ts, x)
+    dt = 0.2 * 0.0625 / float(np.sqrt(1.4 * 3e5))
+    argv = ["calibrate", "gas-slab", "cells=16", "h=0.0625", "pad=52", "--interpolator", "gimp"]
+    argv += ["--dt", repr(dt), "--data", data, "--start", "gamma=1.82,P0=2.1e5", "--no-progress", "--json"]
+    assert main(argv) == 3
+    cap = capsys.readouterr()
+    out = json.loads(cap.out)
+    assert out["fitted"] is None and cap.err == f"jaxmpm: {out['error']}\n"
+    assert "every step toward a lower loss is a run that breaks down" in out["error"]
+    assert out["starts"] == [{"gamma": 1.82, "P0": 2.1e5}] and out["pad"] == 52 and out["dt"] == dt
+    fit = tmp_path / "fit.json"
+    fit.write_text(cap.out)
+    assert main(["ensemble", "gas-slab", "--from-fit", str(fit), "--members", "4"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"jaxmpm: error: --from-fit: {fit} is a fit that has no answer: {out['error']}\n"
+
+
 def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path, capsys):
     scene, t, data, starts, dt = calibration_case()
     path = _csv(tmp_path / "traj.csv", t, data)

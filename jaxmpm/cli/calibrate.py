@@ -405,12 +405,26 @@ def command(args) -> int:
     except ValueError as e:  # the data's column by its name in the file, not the library's argument
         raise UsageError(str(e).replace("x_data reach", f"--data: {column} reaches", 1)) from None
     except jm.calibrate.CalibrationError as e:
+        if args.json and first:  # a reader of the JSON gets an object that says why there is no fit
+            print_json(
+                dict(
+                    fitted=None,
+                    error=str(e),
+                    scene=args.scene,
+                    interpolator=args.interpolator,
+                    method=args.method,
+                    dt=dt,
+                    pad=scene.pad,
+                    viscosity=None if viscosity is None else viscosity.coefficients(),
+                    starts=_start_values(scene, names, starts),
+                )
+            )
         print(f"jaxmpm: {e}", file=sys.stderr)
         return 3
 
     if not first:  # the first process reports for all: they hold the same fit
         return 0
-    start_values = [{n: float(s.get(n, float(getattr(scene, n)))) for n in names} for s in starts]
+    start_values = _start_values(scene, names, starts)
 
     def matrix(m):
         return {a: {b: _number(m[i, j]) for j, b in enumerate(fit.names)} for i, a in enumerate(fit.names)}
@@ -462,6 +476,11 @@ def command(args) -> int:
     if fit.warning is not None:
         print(f"jaxmpm: warning: {fit.warning}", file=sys.stderr)
     return 0
+
+
+def _start_values(scene, names, starts) -> list[dict]:
+    """Every start's values of the fitted names (a name a start does not give: the scene's)."""
+    return [{n: float(s.get(n, float(getattr(scene, n)))) for n in names} for s in starts]
 
 
 def _number(v):

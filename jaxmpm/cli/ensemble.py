@@ -315,8 +315,9 @@ def read_fit(path: str, scene, allowed) -> dict:
         to the physical values at 6 standard deviations either side, for the time step and the grid).
 
     Raises:
-        UsageError: the file cannot be read, is not such JSON, names another scene or parameters
-            that cannot vary, or has no finite, positive semi-definite covariance.
+        UsageError: the file cannot be read, is not such JSON, is a fit without an answer, names
+            another scene or parameters that cannot vary, or has no finite, positive semi-definite
+            covariance.
     """
     try:
         with open(path, encoding="utf-8") as f:
@@ -327,6 +328,8 @@ def read_fit(path: str, scene, allowed) -> dict:
         raise UsageError(
             f"--from-fit: {path} is not JSON (the output of `jaxmpm calibrate --json`)"
         ) from None
+    if isinstance(obj, dict) and obj.get("fitted", "") is None and isinstance(obj.get("error"), str):
+        raise UsageError(f"--from-fit: {path} is a fit that has no answer: {obj['error']}")
     keys = ("fitted", "covariance_theta", "offsets")
     if not isinstance(obj, dict) or not all(isinstance(obj.get(k), dict) for k in keys):
         raise UsageError(
