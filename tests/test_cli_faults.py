@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 
+import jax
 import pytest
 from helpers import usage
 
@@ -221,6 +222,21 @@ def test_vtk_and_study_folders_are_checked_first(capsys, tmp_path):
     assert "already holds ParaView files" in one_line(capsys.readouterr().err)
     assert {p.name: p.read_bytes() for p in frames.iterdir()} == before
     assert main(small + ["--vtk", str(frames), "--overwrite"]) == 0
+
+
+def test_a_run_refused_after_its_vtk_folder_was_made_leaves_no_folder(capsys, tmp_path):
+    """``--devices`` beyond the devices there is refused once the ``--vtk`` folder is made: the command
+    removes the folder it made (still empty), and leaves a folder that was there before."""
+    small = ["run", "gas-expansion", "--interpolator", "spq", "--dt", "1e-5", "--steps", "2"]
+    too_many = ["--devices", str(len(jax.devices()) + 1)]
+    frames = tmp_path / "frames"
+    assert main(small + ["--vtk", str(frames)] + too_many) == 2
+    assert "--devices" in one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []
+    frames.mkdir()
+    assert main(small + ["--vtk", str(frames)] + too_many) == 2
+    capsys.readouterr()
+    assert frames.is_dir()
 
 
 def test_vtk_refuses_a_folder_holding_a_legacy_vtk_file_of_the_users(capsys, tmp_path):

@@ -194,56 +194,75 @@ def command(args) -> int:
     vtk_made = args.vtk is not None and not pathlib.Path(args.vtk).exists()
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
-    progress = False if args.no_progress or not first else None
-    try:
-        if args.out is not None:
-            try:
-                sol, compile_s, wall_s = jm.long_run.run_timed(
-                    scene,
-                    interp,
-                    dt=args.dt,
-                    steps=args.steps,
-                    chunk=args.chunk,
-                    out=args.out,
-                    checkpoint_every=args.checkpoint_every,
-                    progress=progress,
-                    overwrite=args.overwrite,
-                    **settings,
-                )
-            except jm.SimulationError as e:
-                failed = local_solution(e.solution)
-                _breakdown_json(args, scene, failed, viscosity)
-                raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
-            except OSError as e:  # e.g. the disk filled up while saving: a checkpoint before it is intact
-                raise CannotWrite(f"--out {args.out}", e) from None
-        else:
-            try:
-                sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
-            except jm.SimulationError as e:  # the good frames are written before the breakdown is reported
-                failed = local_solution(e.solution)
-                vtk = None
-                if args.vtk is not None and first:
-                    vtk = _write_vtk(args, scene, interp, settings, failed, vtk_made)
-                _breakdown_json(args, scene, failed, viscosity, vtk)
-                raise Breakdown(failed, dt=args.dt) from None
-    except ValueError as e:
-        raise as_option(e) from None
-    sol = local_solution(sol)
-    grad = grad_s = None
-    if names is not None:
-        t0 = time.perf_counter()
+    with _removed_on_failure(args.vtk if vtk_made else None):  # a refused or broken run leaves none
+        progress = False if args.no_progress or not first else None
         try:
-            g = jm.gradient(scene, interp, names, dt=args.dt, steps=args.steps, checkpoint=True, **settings)
-        except ValueError as e:  # _check_grad has refused what it can before the run
-            raise UsageError(f"--grad: {e}") from None
-        grad = {n: float(g[n]) for n in names}
-        grad_s = time.perf_counter() - t0
-    run = _settings(args, sol, viscosity)
-    if settings["devices"] is not None:
-        run["devices"] = settings["devices"]
-    if args.vtk is not None and first:
-        run["vtk"] = _write_vtk(args, scene, interp, settings, sol, vtk_made)
-    return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
+            if args.out is not None:
+                try:
+                    sol, compile_s, wall_s = jm.long_run.run_timed(
+                        scene,
+                        interp,
+                        dt=args.dt,
+                        steps=args.steps,
+                        chunk=args.chunk,
+                        out=args.out,
+                        checkpoint_every=args.checkpoint_every,
+                        progress=progress,
+                        overwrite=args.overwrite,
+                        **settings,
+                    )
+                except jm.SimulationError as e:
+                    failed = local_solution(e.solution)
+                    _breakdown_json(args, scene, failed, viscosity)
+                    raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
+                except OSError as e:  # e.g. the disk filled up while saving: a checkpoint before it is intact
+                    raise CannotWrite(f"--out {args.out}", e) from None
+            else:
+                try:
+                    sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
+                except (
+                    jm.SimulationError
+                ) as e:  # the good frames are written before the breakdown is reported
+                    failed = local_solution(e.solution)
+                    vtk = None
+                    if args.vtk is not None and first:
+                        vtk = _write_vtk(args, scene, interp, settings, failed, vtk_made)
+                    _breakdown_json(args, scene, failed, viscosity, vtk)
+                    raise Breakdown(failed, dt=args.dt) from None
+        except ValueError as e:
+            raise as_option(e) from None
+        sol = local_solution(sol)
+        grad = grad_s = None
+        if names is not None:
+            t0 = time.perf_counter()
+            try:
+                g = jm.gradient(
+                    scene, interp, names, dt=args.dt, steps=args.steps, checkpoint=True, **settings
+                )
+            except ValueError as e:  # _check_grad has refused what it can before the run
+                raise UsageError(f"--grad: {e}") from None
+            grad = {n: float(g[n]) for n in names}
+            grad_s = time.perf_counter() - t0
+        run = _settings(args, sol, viscosity)
+        if settings["devices"] is not None:
+            run["devices"] = settings["devices"]
+        if args.vtk is not None and first:
+            run["vtk"] = _write_vtk(args, scene, interp, settings, sol, vtk_made)
+        return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
+
+
+@contextlib.contextmanager
+def _removed_on_failure(folder):
+    """Remove ``folder`` (one this command made, or ``None``) when the command fails while it is still
+    empty, so that a run refused after the folder check (``--devices`` beyond the devices there, say)
+    leaves nothing behind; a folder with files in it stays."""
+    try:
+        yield
+    except BaseException:
+        if folder is not None:
+            with contextlib.suppress(OSError):  # only if empty
+                pathlib.Path(folder).rmdir()
+        raise
 
 
 def _plain(scene, interp, timing, settings, progress):
