@@ -841,7 +841,9 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
         path: the saved run.
 
     Returns:
-        ``(solution, meta)``: its ``Solution`` and its ``meta`` dict (see the module's docstring).
+        ``(solution, meta)``: its ``Solution`` and its ``meta`` dict (see the module's docstring). The
+        solution is the run as far as it was saved: ``meta["step"]`` of ``meta["steps"]`` steps, and
+        ``meta["complete"]`` true only when every step was taken without a breakdown.
 
     Raises:
         FileNotFoundError: no file at ``path``.
