@@ -207,6 +207,18 @@ def vacuum_forms(F_L, v_L, F_R, v_R, P0, gamma, rho0):
     return v_R - v_L >= g * (c(F_L) + c(F_R))
 
 
+def _check_no_vacuum(caller: str, F_L, v_L, F_R, v_R, P0, gamma, rho0) -> None:
+    """Refuse concrete data from which a vacuum forms: the waves and fields below assume a star
+    state of finite ``F`` (traced data are not checked)."""
+    data = (F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    if all(is_concrete(a) for a in data) and bool(vacuum_forms(*data)):
+        raise ValueError(
+            f"{caller}: the data pull apart faster than the gas can follow (v_R - v_L = "
+            f"{float(v_R) - float(v_L):.6g} >= 2 (c(F_L) + c(F_R)) / (gamma - 1)): a vacuum "
+            "forms between the waves, which this solution does not describe (see vacuum_forms)"
+        )
+
+
 def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
     """The star state and the Lagrangian speeds bounding each wave.
 
@@ -227,9 +239,11 @@ def riemann_waves(F_L, v_L, F_R, v_R, P0, gamma, rho0):
         ``dict(F_star, v_star, a1, b1, a2, b2, rare1, rare2)``.
 
     Raises:
-        ValueError: as ``riemann_star``.
+        ValueError: as ``riemann_star``, or concrete data from which a vacuum forms
+            (``vacuum_forms``; traced, such data give meaningless values).
     """
     _check_one_problem("riemann_waves", F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_no_vacuum("riemann_waves", F_L, v_L, F_R, v_R, P0, gamma, rho0)
     return _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
 
 
@@ -290,11 +304,13 @@ def riemann_solution(xi, F_L, v_L, F_R, v_R, P0, gamma, rho0):
 
     Raises:
         ValueError: as ``riemann_star`` (the states are one number each: ``jax.vmap`` over this
-            function for several problems), or a concrete ``xi`` (any entry) is not a real number
-            or is NaN.
+            function for several problems), concrete data from which a vacuum forms
+            (``vacuum_forms``; traced, such data give meaningless values), or a concrete ``xi`` (any
+            entry) is not a real number or is NaN.
     """
     _check_xi(xi)
     _check_one_problem("riemann_solution", F_L, v_L, F_R, v_R, P0, gamma, rho0)
+    _check_no_vacuum("riemann_solution", F_L, v_L, F_R, v_R, P0, gamma, rho0)
     w = _waves(F_L, v_L, F_R, v_R, P0, gamma, rho0)
     a1, b1, a2, b2, F_s, v_s = w["a1"], w["b1"], w["a2"], w["b2"], w["F_star"], w["v_star"]
     K = jnp.sqrt(gamma * P0 / rho0)
@@ -338,8 +354,10 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
     A material point is at rest until the rarefaction head reaches it at ``t_h = (L - X) / c0``;
     then ``x = L + eta t``, ``eta = (2 c0 - (gamma+1) c0 s) / (gamma - 1)``, ``s = (t/t_h)^-k``,
     ``k = (gamma-1)/(gamma+1)``, so ``v = 2 c0 (1 - s) / (gamma - 1)`` and ``F = (t / t_h)^(2/(gamma+1))``.
-    Valid until the head reaches the wall, ``t <= L / c0``. At the front (``X = L``) ``F`` is infinite.
-    (The rarefaction into vacuum of Toro, ch. 4, in Lagrangian form.)
+    Valid until the head reaches the wall, ``0 <= t <= L / c0``. At the front (``X = L``) ``F`` is
+    infinite, and so are the derivatives of ``x`` and ``v`` in ``X`` and ``L`` there (one-sided);
+    those in ``t``, ``P0``, ``gamma`` and ``rho0`` are finite. (The rarefaction into vacuum of Toro,
+    ch. 4, in Lagrangian form.)
 
     Args:
         X: reference position(s), in ``[0, L]`` (the body).
@@ -355,7 +373,8 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
     Raises:
         ValueError: a concrete ``X`` (any entry) or ``t`` is not finite, or ``L``, ``P0``, ``rho0``
             are not finite and > 0, or ``gamma`` is not finite and > 1, or a concrete ``X`` (any
-            entry) lies outside ``[0, L]`` (tracers are not checked).
+            entry) lies outside ``[0, L]``, or a concrete ``t`` (any entry) outside
+            ``[0, L / c0]`` (to 8 ulps; tracers are not checked).
     """
     check_finite("X", X)
     check_finite("t", t)
@@ -366,13 +385,23 @@ def vacuum_expansion(X, t, L, P0, gamma, rho0):
         if not np.all((arr >= 0) & (arr <= length)):
             raise ValueError(f"X must lie in the body [0, L] = [0, {show(length)}], got {show(arr)}")
     c0 = jnp.sqrt(gamma * P0 / rho0)
-    t_h = (L - X) / c0
-    moving = t > t_h
-    ratio = jnp.where(moving, t / jnp.where(moving, t_h, 1.0), 1.0)  # t / t_h, 1 at rest
+    if all(is_concrete(a) for a in (t, L, P0, gamma, rho0)):
+        times, t_wall = np.asarray(t), float(np.asarray(L) / np.asarray(c0))
+        eps = float(np.finfo(np.result_type(times.dtype, np.float32)).eps)
+        if not np.all((times >= 0) & (times <= t_wall * (1.0 + 8.0 * eps))):
+            raise ValueError(
+                f"t must lie in [0, L / c0] = [0, {t_wall:.6g}] (the solution holds until the "
+                f"rarefaction's head reaches the wall), got {show(times)}"
+            )
+    d = L - X  # the distance from the front, c0 times the head's arrival t_h
+    moving = t > d / c0
+    # s = (t / t_h)^-k = d^k (c0 t)^-k: at the front (d = 0) it is 0, its derivative in d (X, L)
+    # infinite and in c0 and t zero, where the quotient t / t_h would make them all NaN
     k = (gamma - 1.0) / (gamma + 1.0)
-    s = ratio ** (-k)
+    d_m, ct_m = jnp.where(moving, d, 1.0), jnp.where(moving, c0 * t, 1.0)
+    s = jnp.where(moving, d_m**k * ct_m ** (-k), 1.0)
     eta = (2.0 * c0 - (gamma + 1.0) * c0 * s) / (gamma - 1.0)
     x = jnp.where(moving, L + eta * t, X)
     v = jnp.where(moving, 2.0 * c0 * (1.0 - s) / (gamma - 1.0), 0.0)
-    F = ratio ** (2.0 / (gamma + 1.0))
+    F = jnp.where(moving, (ct_m / d_m) ** (2.0 / (gamma + 1.0)), 1.0)
     return x, v, F

@@ -104,9 +104,11 @@ def exact_holds(scene: AbstractScene, t: Float[ArrayLike, ""]) -> bool:
         nor an exact Euler solution, ``solution``).
 
     Raises:
-        ValueError: ``scene`` is not a scene.
+        ValueError: ``scene`` is not a scene, or a concrete ``t`` is not a finite number.
     """
     _check_scene(scene)
+    if is_concrete(t) and np.ndim(t) == 0 and not np.isfinite(float(t)):
+        raise ValueError(f"t must be a finite number, got {float(t)!r}")
     if scene.exact is None and not hasattr(scene, "solution"):
         return False
     if getattr(type(scene), "t_valid", None) is None or not is_concrete(t) or np.ndim(t) != 0:
@@ -321,6 +323,11 @@ def _check_state(state, what: str, allow_broken) -> None:  # allow_broken: check
             "members that broke down first"
         )
     _refuse_broken(state, allow_broken, f"{what} measures a finished run, and this state is")
+    if is_concrete(state.t) and not float(state.t) >= 0.0:  # NaN fails too
+        raise ValueError(
+            f"{what} measures a state of a run, whose time t is finite and >= 0; this state has "
+            f"t = {float(state.t)!r}"
+        )
 
 
 def _check_body(body) -> None:
@@ -403,9 +410,9 @@ def errors(
     Raises:
         ValueError: ``scene`` is not a scene, ``state`` is not one run's ``State`` (a ``Solution``, an
             ensemble's batch, ``None``), ``body`` is not a ``Body``, the state is of a run that broke
-            down (and ``allow_broken`` is ``False``), the state is not of the scene's dimension, the
-            state and the body have different particle counts, ``where`` is not one bool per
-            particle.
+            down (and ``allow_broken`` is ``False``), its time ``t`` is not finite and >= 0 (every
+            measure refuses such a state), the state is not of the scene's dimension, the state and
+            the body have different particle counts, ``where`` is not one bool per particle.
     """
     _check_scene(scene)
     _check_state(state, "errors()", allow_broken)

@@ -125,6 +125,55 @@ def test_vacuum_expansion_takes_the_whole_body_and_passes_tracers():
     np.testing.assert_array_equal(np.asarray(xs), np.asarray(x))
 
 
+@pytest.mark.parametrize("t", [-1e-3, jnp.asarray([1e-3, -1e-9]), 1.01])
+def test_vacuum_expansion_refuses_t_outside_its_validity(t):
+    """Before 0 the body is at rest and after L / c0 the head has met the wall: neither is this
+    solution (with c0 = sqrt(1.4e5), L / c0 = 1 / 374.17 = 0.00267)."""
+    _one_line(
+        lambda: exact.vacuum_expansion(0.5, t, 1.0, 1e5, 1.4, 1.0),
+        r"^t must lie in \[0, L / c0\] = \[0, 0\.00267261\] \(the solution holds until the rarefaction's",
+    )
+
+
+def test_vacuum_expansion_holds_up_to_the_wall_time():
+    t_wall = 1.0 / math.sqrt(1.4e5)
+    x, v, _ = exact.vacuum_expansion(jnp.asarray([0.0, 1.0]), t_wall, 1.0, 1e5, 1.4, 1.0)
+    assert float(x[0]) == 0.0 and float(v[0]) == 0.0  # the head has just reached the wall
+    np.testing.assert_allclose(float(x[1]), 1.0 + 5.0 * math.sqrt(1.4e5) * t_wall, rtol=1e-15)
+
+
+def test_vacuum_expansion_front_has_finite_derivatives_in_t_and_the_gas():
+    """At the front (X = L) x = L + 2 c0 t / (gamma - 1) and v = 2 c0 / (gamma - 1): their derivatives
+    in t, P0, gamma and rho0 are finite (c0 = sqrt(gamma P0 / rho0)); in L the front's x is that of
+    an interior point a little behind it, whose derivative is infinite (one-sided)."""
+    t, P0, g, rho0 = 1e-3, 1e5, 1.4, 1.2
+    c0 = math.sqrt(g * P0 / rho0)
+
+    def x_front(a):
+        return exact.vacuum_expansion(1.0, *a)[0]
+
+    grad = np.asarray(jax.grad(x_front)(jnp.asarray([t, 1.0, P0, g, rho0])))
+    d_c0 = 2.0 * t / (g - 1.0)  # dx/dc0 at the front
+    expected = [
+        2.0 * c0 / (g - 1.0),  # dx/dt = v
+        -math.inf,
+        d_c0 * c0 / (2.0 * P0),
+        d_c0 * c0 / (2.0 * g) - 2.0 * c0 * t / (g - 1.0) ** 2,
+        -d_c0 * c0 / (2.0 * rho0),
+    ]
+    np.testing.assert_allclose(grad, expected, rtol=1e-13)
+
+
+def test_riemann_waves_and_solution_refuse_data_from_which_a_vacuum_forms():
+    data = (1.0, -5000.0, 1.0, 5000.0, 1e5, 1.4, 1.2)
+    assert bool(exact.vacuum_forms(*data))
+    for name, call in (
+        ("riemann_waves", lambda: exact.riemann_waves(*data)),
+        ("riemann_solution", lambda: exact.riemann_solution(jnp.asarray([-100.0, 0.0]), *data)),
+    ):
+        _one_line(call, rf"^{name}: the data pull apart faster than the gas can follow .* a vacuum forms")
+
+
 # ---------------------------------------------------------------- reference: max_steps
 
 SLAB = dict(cells=4, ppc=1, pad=8)

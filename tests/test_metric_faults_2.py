@@ -71,6 +71,25 @@ def test_a_batch_with_a_broken_member_is_refused_by_every_state_measure(runs):
     np.testing.assert_array_equal(rho[1], jm.density(broken.state, broken.body, allow_broken=True))
 
 
+@pytest.mark.parametrize("t", [-1.0, np.nan])
+def test_a_state_whose_time_is_negative_or_nan_is_refused(runs, t):
+    """A state written by hand at t = -1 was measured against the exact solution at -1 (finite,
+    meaningless errors), and at t = NaN every exact error was None, as for a scene without one."""
+    scene, _, ok = runs
+    state = eqx.tree_at(lambda s: s.t, ok.state, jnp.asarray(t, dtype=ok.state.t.dtype))
+    for name, call in {
+        "errors": lambda: jm.errors(scene, state, ok.body),
+        "pressure_error": lambda: metrics.pressure_error(scene, state, ok.body),
+        "separation": lambda: jm.separation(state, ok.body),
+    }.items():
+        with pytest.raises(
+            ValueError, match=rf"^{name}\(\) measures a state of a run, whose time t is finite"
+        ):
+            call()
+    with pytest.raises(ValueError, match=r"^t must be a finite number, got nan$"):
+        metrics.exact_holds(scene, np.nan)
+
+
 def test_a_batched_body_is_refused(runs):
     _, _, ok = runs
     with pytest.raises(
