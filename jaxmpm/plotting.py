@@ -100,6 +100,7 @@ def profile_grid(
     path,
     exact_line: float | None = None,
     overwrite: bool = False,
+    note: str | None = None,
 ) -> pathlib.Path:
     """A grid of along-the-bar profiles.
 
@@ -111,19 +112,24 @@ def profile_grid(
             ...; without one, PNG and ``.png`` appended, as ``Figure.savefig`` does).
         exact_line: draw a dashed reference line at this y (the manufactured solution).
         overwrite: replace a file already at ``path`` (else it is refused).
+        note: text written under the grid (what is not drawn, and why), or ``None``. A panel
+            whose list is empty is drawn empty.
 
     Returns:
         The file written.
 
     Raises:
         ValueError: ``panels`` is not a non-empty dict; ``path`` is not a file name, is a folder
-            or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
+            or its suffix not a format matplotlib writes; ``overwrite`` is not a bool, or ``note``
+            not a string or ``None``.
         FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
         FileNotFoundError: the folder of ``path`` does not exist.
         OSError: the figure cannot be written (a full disk): the file keeps what it held, and the
             error names it (``filename``).
     """
     _check_panels("panels", panels, "{(row_label, col_label): [(label, X, y, style), ...]}")
+    if note is not None and not isinstance(note, str):
+        raise ValueError(f"note must be a string or None, got {note!r}")
     target, fmt = _target(path, overwrite)
     rows = list(dict.fromkeys(r for r, _ in panels))
     cols = list(dict.fromkeys(c for _, c in panels))
@@ -143,9 +149,15 @@ def profile_grid(
             if i == len(rows) - 1:
                 ax.set_xlabel("X / L")
             ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7)
+    if axes[0][0].get_legend_handles_labels()[0]:
+        axes[0][0].legend(fontsize=7)
     fig.suptitle(title)
-    fig.tight_layout()
+    bottom = 0.0
+    if note:
+        lines = note.count("\n") + 1
+        bottom = min(0.4, (0.16 * lines + 0.1) / fig.get_figheight())  # 0.16 inch a line of 7 pt
+        fig.text(0.01, 0.01, note, fontsize=7, ha="left", va="bottom")
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
     _save(fig, target, fmt, dpi=120)
     return target
 

@@ -28,6 +28,45 @@ def test_study_talk_small(tmp_path, capsys):
     assert "| MPQ | 1 |" in (tmp_path / "table.md").read_text()
 
 
+def test_study_talk_whose_runs_all_break_down_marks_them_in_table_and_figures(tmp_path, capsys, monkeypatch):
+    """A step 10 times the stable one breaks every run at its first step: the table shows "-" for
+    their errors at the late time, and each late figure is drawn with its panels empty and a note
+    naming every run left out (drawing them raised 'panels must be a non-empty dict')."""
+    from jaxmpm.studies import talk
+
+    monkeypatch.setattr(talk, "DT", 1e-3)
+    result = talk.main(str(tmp_path), small=True)
+    late = [r for r in result["table"] if r["t"] == talk.TIMES[-1]]
+    assert len(late) == len(METHODS) * 2 and all(r["status"] == "broke down at step 1" for r in late)
+    table = (tmp_path / "table.md").read_text()
+    assert table.count("| - | - | - | - | - | - | broke down at step 1 |") == len(METHODS) * 2
+    assert "nan" not in table
+    for q in ("F", "x", "v"):
+        assert (tmp_path / f"{q}_t0.00125.png").stat().st_size > 10_000
+
+
+def test_profile_grid_writes_a_note_under_the_grid(tmp_path):
+    import matplotlib.image
+    import numpy as np
+
+    from jaxmpm import plotting
+
+    X = np.linspace(0.0, 1.0, 5)
+    panels = {("a", "SPQ"): [("beta = 1", X, X, {})], ("a", "MPQ"): []}
+    plain = plotting.profile_grid(panels, ylabel="y", title="t", path=tmp_path / "plain.png")
+    noted = plotting.profile_grid(
+        panels, ylabel="y", title="t", path=tmp_path / "noted.png", note="Not drawn: MPQ broke down"
+    )
+    a, b = matplotlib.image.imread(plain), matplotlib.image.imread(noted)
+    assert a.shape == b.shape
+    rows = a.shape[0] // 10  # the bottom tenth: the x labels without the note, the note under them
+
+    def ink(image):  # pixels that are not white
+        return int(np.sum(np.any(image[..., :3] < 0.9, axis=-1)))
+
+    assert ink(b[-rows:]) > ink(a[-rows:]) + 100
+
+
 def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
     """The sensitivity study's figure takes one colour per interpolator of the registry (every one of
     ``METHODS``, with and without artificial cells), so a new interpolator cannot break the study."""

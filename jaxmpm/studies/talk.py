@@ -9,7 +9,9 @@ domain-separation diagnostic over time, and a markdown table of errors with run 
 from __future__ import annotations
 
 import dataclasses
+import math
 import pathlib
+import textwrap
 
 import jax.numpy as jnp
 import numpy as np
@@ -164,13 +166,16 @@ def markdown_table(table: list[dict]) -> str:
         "| max abs v err (m/s) | max separation | status | run (ms) | compile (s) |"
     )
     lines = [head, "|" + "---|" * 13]
+
+    def e(v):  # a run's error, or "-" where it has none (after a breakdown)
+        return "-" if math.isnan(v) else f"{v:.3e}"
+
     for r in table:
         lines.append(
             f"| {r['method']} | {r['artificial_cells']} | {r['beta']:g} | {r['t']:g} | "
-            f"{r['F_max_rel']:.3e} | {r['F_max_rel_boundary']:.3e} | {r['F_max_rel_interior']:.3e} | "
-            f"{r['x_max_abs']:.3e} | "
-            f"{r['v_max_abs']:.3e} | {r['separation_max']:.3e} | {r['status']} | {1e3 * r['wall_s']:.2f} | "
-            f"{r['compile_s']:.2f} |"
+            f"{e(r['F_max_rel'])} | {e(r['F_max_rel_boundary'])} | {e(r['F_max_rel_interior'])} | "
+            f"{e(r['x_max_abs'])} | {e(r['v_max_abs'])} | {e(r['separation_max'])} | {r['status']} | "
+            f"{1e3 * r['wall_s']:.2f} | {r['compile_s']:.2f} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -191,6 +196,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
 
     colours = dict(zip(betas, ("tab:blue", "tab:orange", "tab:red", "tab:green", "tab:purple")))
     paths = []
+    wrap = 55 * len({r.method for r in runs})  # characters of 7 pt across the grid's width
     for t in TIMES:
         k = int(round(t / DT))
         for qty, ylabel in (
@@ -199,6 +205,7 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
             ("v", "(v - v_exact) / (beta L)"),
         ):
             panels: dict = {}
+            left_out = []
             for r in runs:
                 sol = r.solution
                 X = np.asarray(sol.body.X[:, 0])
@@ -211,9 +218,12 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
                     y = (np.asarray(st.x[:, 0]) - np.asarray(ex["x"][:, 0])) / float(r.scene.h)
                 else:
                     y = (np.asarray(st.v[:, 0]) - np.asarray(ex["v"][:, 0])) / (r.beta * L)
-                if int(sol.state.fail_step) >= 0 and k >= int(sol.state.fail_step):
-                    continue  # never plot a state the run did not reach
                 row = "artificial cells" if r.artificial_cells else "no artificial cells"
+                failed_at = int(sol.state.fail_step)
+                if failed_at >= 0 and k >= failed_at:  # never plot a state the run did not reach
+                    panels.setdefault((row, r.method), [])
+                    left_out.append(f"{r.method}, {row}, beta = {r.beta:g}: broke down at step {failed_at}")
+                    continue
                 style = dict(color=colours[r.beta], marker="o", ms=3, lw=1)
                 panels.setdefault((row, r.method), []).append((f"beta = {r.beta:g}", X / L, y, style))
             path = OUTPUTS.check(out / f"{qty}_t{t:g}.png")
@@ -224,6 +234,9 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
                 exact_line=1.0 if qty == "F" else 0.0,
                 title=f"Gas expansion u = beta t X at t = {t:g} s: {ylabel} along the bar",
                 overwrite=True,  # a rerun of the study replaces its own figures
+                note=textwrap.fill("Not drawn, broke down before this time: " + "; ".join(left_out), wrap)
+                if left_out
+                else None,
             )
             paths.append(path)
     beta = max(betas)
