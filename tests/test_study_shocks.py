@@ -100,3 +100,16 @@ def test_detonation_against_air_gives_a_status_per_run():
     assert any(r["verdict"] == "accurate" for r in results)  # CPDI at a small CFL number
     table = stability.detonation_markdown(results)
     assert table.count("| CPDI | 0 |") == 1 and table.count("| CPDI | 1 |") == 1
+
+
+def test_stability_tables_name_every_failed_quantity():
+    """Every status bit has a table name (a run failing only on products in tension raised 'min()
+    arg is an empty sequence' in the detonation table), and the cell is the lowest bit's."""
+    from jaxmpm import status as st_bits
+
+    assert set(stability.SHORT) == set(st_bits.QUANTITY)
+    r = dict(method="MPQ", artificial_cells=0, cfl=0.5, status=st_bits.PRODUCTS_TENSION, fail_step=12)
+    r["verdict"] = "broken at step 12 on particle 3: detonation products in tension"
+    assert "| MPQ | 0 | tension@12 |" in stability.detonation_markdown([r])
+    r2 = dict(r, status=st_bits.PRODUCTS_TENSION | st_bits.NEGATIVE_ENERGY)
+    assert "| MPQ | 0 | e<0@12 |" in stability.detonation_markdown([r2])

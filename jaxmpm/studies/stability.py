@@ -73,7 +73,15 @@ SHORT = {
     st_bits.SCENE_DATA: "data",
     st_bits.MAX_STEPS: "steps",
     st_bits.NEGATIVE_ENERGY: "e<0",
+    st_bits.PRODUCTS_TENSION: "tension",
 }
+"""A table cell's name of each failed quantity (every bit of ``jaxmpm.status.QUANTITY``)."""
+
+
+def _failure(r: dict) -> str:
+    """A broken run's cell: its first failed quantity (the lowest bit set) and the step it failed."""
+    first = min(b for b in st_bits.QUANTITY if r["status"] & b)
+    return f"{SHORT.get(first, f'bit {first}')}@{r['fail_step']}"
 
 
 def cases(small: bool = False) -> list[dict]:
@@ -203,8 +211,7 @@ def _code(r: dict) -> str:
         return f"{r['F_max_rel']:.0e}"
     if r["verdict"] == "inaccurate":
         return f"{r['F_max_rel']:.0e}" if r["F_max_rel"] < 10 else ">10"
-    first = min(b for b in SHORT if r["status"] & b)
-    return f"{SHORT[first]}@{r['fail_step']}"
+    return _failure(r)
 
 
 def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
@@ -361,8 +368,7 @@ def shock_markdown(results: list[dict]) -> str:
     def code(r):
         if not r["status"]:
             return f"{r['L1_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
-        first = min(b for b in SHORT if r["status"] & b)
-        return f"{SHORT[first]}@{r['fail_step']}"
+        return _failure(r)
 
     lines = ["| method | " + " | ".join(f"CFL {c:g}" for c in CFLS) + " |", "|---|" + "---|" * len(CFLS)]
     for method in dict.fromkeys(r["method"] for r in results):
@@ -536,8 +542,7 @@ def detonation_markdown(results: list[dict]) -> str:
     def code(r):
         if not r["status"]:
             return f"{r['F_rms_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
-        first = min(b for b in SHORT if r["status"] & b)
-        return f"{SHORT[first]}@{r['fail_step']}"
+        return _failure(r)
 
     cfls = list(dict.fromkeys(r["cfl"] for r in results))
     lines = [
