@@ -90,3 +90,19 @@ def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
     path = tmp_path / "sensitivity_beta.png"
     sensitivity.figure(results, "beta", path, "s")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_convergence_orders_fit_what_finished_and_give_no_finest_pair_past_a_breakdown():
+    """Errors falling by 4 per halving of h are order 2; where the finest run broke down (NaN) the fit
+    is over the others, and the finest pair has no order: the coarser pair is not the finest."""
+    import math
+
+    from jaxmpm.studies.convergence import fit_order
+
+    h = [1 / 16, 1 / 32, 1 / 64, 1 / 128]
+    assert fit_order(h, [1e-2, 2.5e-3, 6.25e-4, 1.5625e-4]) == pytest.approx((2.0, 2.0), rel=1e-12)
+    fit, pair = fit_order(h, [1e-2, 2.5e-3, 6.25e-4, math.nan])
+    assert fit == pytest.approx(2.0, rel=1e-12) and math.isnan(pair)
+    fit, pair = fit_order(h, [1e-2, math.nan, 6.25e-4, 1.5625e-4])  # a coarser breakdown: the pair stands
+    assert fit == pytest.approx(2.0, rel=1e-12) and pair == pytest.approx(2.0, rel=1e-12)
+    assert all(math.isnan(v) for v in fit_order(h, [1e-2, math.nan, math.nan, math.nan]))

@@ -486,17 +486,23 @@ def fit_order(h, e) -> tuple[float, float]:
 
     Args:
         h: grid spacings.
-        e: errors at them (non-finite or zero ones are left out).
+        e: errors at them (non-finite or zero ones, those of runs that broke down among them, are left
+            out of the fit).
 
     Returns:
-        ``(least-squares order, finest-pair order)``, NaN with fewer than two errors.
+        ``(least-squares order, finest-pair order)``: the fit over the errors left, NaN with fewer than
+        two; the order between the two finest spacings, NaN unless both their errors are finite and
+        > 0 (a pair of coarser runs is not the finest pair).
     """
     h, e = np.asarray(h, float), np.asarray(e, float)
     ok = np.isfinite(e) & (e > 0)
     if ok.sum() < 2:
         return float("nan"), float("nan")
     slope = np.polyfit(np.log(1 / h[ok]), np.log(e[ok]), 1)[0]
-    hh, ee = h[ok][-2:], e[ok][-2:]
+    finest = np.argsort(h)[:2][::-1]  # the two finest spacings, the coarser first
+    if not np.all(ok[finest]):
+        return float(-slope), float("nan")
+    hh, ee = h[finest], e[finest]
     return float(-slope), float(math.log(ee[0] / ee[1]) / math.log(hh[0] / hh[1]))
 
 
@@ -640,7 +646,8 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
         "# Shocks: observed orders of convergence\n\n"
         "L1 errors at the end time of density, velocity, pressure and specific internal energy against "
         "the exact solution, at the particles' positions (`jaxmpm.metrics.euler_errors`). Order: "
-        "least-squares slope over the resolutions that finished (in brackets: the finest pair). Ideal "
+        "least-squares slope over the resolutions that finished (in brackets: the finest pair, - where "
+        "one of its runs broke down). Ideal "
         "gas with the energy equation, artificial viscosity (c_quad 2, c_lin 0.2), 2 particles per "
         f"cell, {', '.join(used)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
         "the total (kinetic plus internal) energy's relative change at the finest resolution. The "
@@ -688,11 +695,27 @@ def _ladder(outdir, all_cases, methods, transfers, release) -> dict:
                 rows.extend(run_case(case, method, transfer))
         if release is not None:
             release()
+    return write_ladder(outdir, rows, all_cases)
+
+
+def write_ladder(outdir: pathlib.Path, rows: list[dict], all_cases: list) -> dict:
+    """Write the smooth cases' ``orders.md``, ``orders.csv``, ``runs.csv`` and ``orders.json`` from the
+    runs' rows (``run_case``'s), and print the table.
+
+    Args:
+        outdir: the output folder.
+        rows: one row per run.
+        all_cases: the cases they ran (``cases``), for the table's notes.
+
+    Returns:
+        ``runs`` (the rows) and ``orders`` (one row per scene, method and transfer).
+    """
     order_rows = orders(rows)
     head = (
         "# Observed orders of convergence\n\n"
         "RMS errors over real particles at the end time: x (absolute), F (relative), v (absolute). "
-        "Order: least-squares slope over the resolutions that finished (in brackets: the finest pair). "
+        "Order: least-squares slope over the resolutions that finished (in brackets: the finest pair, - "
+        "where one of its runs broke down). "
         "USL, no artificial cells unless stated, float64, dt = CFL h / max(c + |v|) every step.\n\n"
     )
     text = head + markdown(order_rows, all_cases)
