@@ -106,3 +106,18 @@ def test_convergence_orders_fit_what_finished_and_give_no_finest_pair_past_a_bre
     fit, pair = fit_order(h, [1e-2, math.nan, 6.25e-4, 1.5625e-4])  # a coarser breakdown: the pair stands
     assert fit == pytest.approx(2.0, rel=1e-12) and pair == pytest.approx(2.0, rel=1e-12)
     assert all(math.isnan(v) for v in fit_order(h, [1e-2, math.nan, math.nan, math.nan]))
+
+
+def test_convergence_main_refuses_unknown_names_before_it_runs(tmp_path):
+    """An unknown scene ran nothing and returned {}; an unknown method raised KeyError('cpdi') after
+    the runs before it."""
+    from jaxmpm.studies import convergence
+
+    out = tmp_path / "out"
+    with pytest.raises(ValueError, match=r"^scenes: 'riemann' is not one of \['manufactured"):
+        convergence.main(str(out), small=True, scenes=["riemann"])
+    with pytest.raises(ValueError, match=r"^methods: 'cpdi' is not one of \['SPQ', "):
+        convergence.main(str(out), small=True, methods=("cpdi",))
+    with pytest.raises(ValueError, match=r"^transfers must be a sequence of names, one or more of"):
+        convergence.main(str(out), small=True, transfers="FLIP")
+    assert not out.exists()

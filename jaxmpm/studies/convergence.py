@@ -602,9 +602,24 @@ def main(
 
     Raises:
         RuntimeError: float64 is off.
+        ValueError: a name in ``transfers``, ``methods`` or ``scenes`` that is not one of them (before
+            anything runs).
         OSError: a file cannot be written (each is written whole: it keeps what it held before).
     """
     require_float64("convergence")
+    known = [c.name for c in cases(small)] + [c.name for c in shock_cases(small)]
+    for name, given, allowed in (
+        ("transfers", transfers, list(TRANSFERS)),
+        ("methods", methods, list(METHODS)),
+        ("scenes", scenes, known),
+    ):
+        if given is None:
+            continue
+        if isinstance(given, str) or not all(isinstance(g, str) for g in given):
+            raise ValueError(f"{name} must be a sequence of names, one or more of {allowed}, got {given!r}")
+        unknown = [g for g in given if g not in allowed]
+        if unknown:
+            raise ValueError(f"{name}: {unknown[0]!r} is not one of {allowed}")
     outdir = pathlib.Path(out)
     outdir.mkdir(parents=True, exist_ok=True)
     all_cases = [c for c in cases(small) if scenes is None or c.name in scenes]
