@@ -121,3 +121,39 @@ def test_convergence_main_refuses_unknown_names_before_it_runs(tmp_path):
     with pytest.raises(ValueError, match=r"^transfers must be a sequence of names, one or more of"):
         convergence.main(str(out), small=True, transfers="FLIP")
     assert not out.exists()
+
+
+def test_work_precision_figure_names_its_resolutions_and_the_runs_it_leaves_out(tmp_path, monkeypatch):
+    """The title's resolutions are the runs' (it read 16 to 1024 cells for --small), and a run that broke
+    down is named in its method's legend entry instead of vanishing from the curve."""
+    import math
+
+    from jaxmpm.studies import work_precision
+
+    drawn = {}
+    monkeypatch.setattr(work_precision.OUTPUTS, "figure", lambda fig, path, dpi: drawn.update(fig=fig))
+    rows = [
+        dict(method="SPQ", cells=16, wall_s=0.1, x_rms_abs=1e-3),
+        dict(method="SPQ", cells=64, wall_s=0.4, x_rms_abs=math.nan),
+        dict(method="MPQ", cells=16, wall_s=0.2, x_rms_abs=2e-3),
+        dict(method="MPQ", cells=64, wall_s=0.8, x_rms_abs=5e-4),
+    ]
+    work_precision.figure(rows, tmp_path / "wp.png")
+    ax = drawn["fig"].axes[0]
+    assert ax.get_title() == "Work-precision: neo-Hookean, A = 0.05, 16 to 64 cells"
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["SPQ (not shown, broke down: 64 cells)", "MPQ"]
+
+
+def test_multid_first_steps_report_a_breakdown_in_the_table(monkeypatch):
+    """A first step beyond the stable limit is reported as such in the study's table (with throw left
+    on it raised SimulationError out of the study)."""
+    from jaxmpm.studies import multid
+
+    monkeypatch.setattr(multid, "DT", 1e-3)
+    rows = multid.first_steps((2,))
+    assert len(rows) == 2 * len(METHODS) and all(r["failure"] is not None for r in rows)
+    lines = multid.first_step_markdown(rows)
+    assert len(lines) == 4 + len(rows)
+    assert "| 2 | spq | 0 | broke down at step 1: time step beyond the stable limit" in lines[4]
+    assert all(line.endswith("| - | - |") for line in lines[4:])
