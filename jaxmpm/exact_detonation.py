@@ -59,8 +59,11 @@ live ones carries the first derivatives (those of the implicit function).
 
 Input checks (``rho0 > 0``, ``D > 0``, ``gamma > 1``, ``t > 0`` or ``t >= 0``, finite positions, ``end``
 one of ``"wall"`` and ``"free"``) run when the values are concrete and raise a ``ValueError`` naming the
-parameter. Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the values are tracers and cannot be
-checked: bad values then give NaN.
+parameter; positions and times whose shapes do not broadcast together are refused the same way.
+Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the values are tracers and are not checked: bad values
+then give NaN or finite but meaningless values, and no error (a traced ``t < 0`` in
+``gamma_law_fields``, say, gives the wall's state at rest at every ``x``; a traced ``gamma < 1`` a
+finite pressure).
 """
 
 import functools
@@ -105,6 +108,24 @@ def _check_explosive(rho0, D, gamma=None) -> None:
     if gamma is not None:
         check_real("gamma", gamma)
         check_greater("gamma", gamma, 1.0)
+
+
+def _check_broadcast(**values) -> None:
+    """Check that the arrays among ``values`` broadcast together (shapes are known even for tracers).
+
+    Raises:
+        ValueError: they do not, naming each array and its shape.
+    """
+    shapes = {name: np.shape(value) for name, value in values.items() if np.ndim(value) > 0}
+    try:
+        np.broadcast_shapes(*shapes.values())
+    except ValueError:
+        names = list(shapes)
+        listed = [f"{name} of shape {shape}" for name, shape in shapes.items()]
+        raise ValueError(
+            f"{', '.join(names[:-1])} and {names[-1]} must broadcast together, got "
+            f"{', '.join(listed[:-1])} and {listed[-1]}"
+        ) from None
 
 
 def _check_position(name, value, end) -> None:
@@ -262,21 +283,24 @@ def gamma_law_fields(x, t, rho0, D, gamma, end="wall"):
 
     Args:
         x: Eulerian position(s), any shape (broadcast with ``t``).
-        t: time (> 0).
+        t: time (> 0), one number or an array that broadcasts with ``x``.
         rho0: the explosive's initial density (> 0).
         D: the detonation speed (> 0).
         gamma: the products' adiabatic exponent (> 1).
         end: ``"wall"`` (a rigid wall at ``x = 0``) or ``"free"`` (a free surface there).
 
     Returns:
-        A dict with ``u``, ``c``, ``p``, ``rho`` and ``J = rho0 / rho`` at ``x``.
+        A dict with ``u``, ``c``, ``p``, ``rho`` and ``J = rho0 / rho`` at ``x``, of the broadcast
+        shape.
 
     Raises:
         ValueError: as for ``gamma_law_cj``, or a concrete ``t`` is not > 0, ``x`` not finite, or
-            ``end`` unknown.
+            ``end`` unknown; or the shapes of ``x``, ``t`` (and of ``rho0``, ``D``, ``gamma`` where
+            they are arrays) do not broadcast together, checked for tracers too.
     """
     _check_end(end)
     _check_explosive(rho0, D, gamma)
+    _check_broadcast(x=x, t=t, rho0=rho0, D=D, gamma=gamma)
     check_real("x", x)
     check_finite("x", x)
     check_real("t", t)
@@ -334,7 +358,7 @@ def gamma_law_particles(X, t, rho0, D, gamma, end="wall"):
 
     Args:
         X: reference position(s), any shape (broadcast with ``t``); ``>= 0`` with ``end="free"``.
-        t: time (>= 0).
+        t: time (>= 0), one number or an array that broadcasts with ``X``.
         rho0: the explosive's initial density (> 0).
         D: the detonation speed (> 0).
         gamma: the products' adiabatic exponent (> 1).
@@ -342,14 +366,17 @@ def gamma_law_particles(X, t, rho0, D, gamma, end="wall"):
 
     Returns:
         A dict with the position ``x``, the stretch ``F = dx/dX = J``, and ``u``, ``c``, ``p``,
-        ``rho`` at the particles.
+        ``rho`` at the particles, of the broadcast shape.
 
     Raises:
         ValueError: as for ``gamma_law_cj``, or a concrete ``t`` is negative, ``X`` not finite (or
-            negative with ``end="free"``), or ``end`` unknown.
+            negative with ``end="free"``), or ``end`` unknown; or the shapes of ``X``, ``t`` (and of
+            ``rho0``, ``D``, ``gamma`` where they are arrays) do not broadcast together, checked for
+            tracers too.
     """
     _check_end(end)
     _check_explosive(rho0, D, gamma)
+    _check_broadcast(X=X, t=t, rho0=rho0, D=D, gamma=gamma)
     _check_position("X", X, end)
     check_real("t", t)
     check_nonnegative("t", t)
@@ -513,12 +540,14 @@ class IsentropeFan(eqx.Module):
             A dict with ``u``, ``c``, ``p``, ``rho`` and ``J`` at ``x``.
 
         Raises:
-            ValueError: a concrete ``x`` is not finite or ``t`` not > 0.
+            ValueError: a concrete ``x`` is not finite or ``t`` not > 0, or the shapes of ``x`` and
+                ``t`` do not broadcast together.
         """
         check_real("x", x)
         check_finite("x", x)
         check_real("t", t)
         check_positive("t", t)
+        _check_broadcast(x=x, t=t)
         return _fan_fields(self, _float(x), _float(t))
 
     def particles(self, X, t):
@@ -536,11 +565,12 @@ class IsentropeFan(eqx.Module):
 
         Raises:
             ValueError: a concrete ``X`` is not finite (or negative with ``end="free"``), or ``t`` is
-                negative.
+                negative, or the shapes of ``X`` and ``t`` do not broadcast together.
         """
         _check_position("X", X, self.end)
         check_real("t", t)
         check_nonnegative("t", t)
+        _check_broadcast(X=X, t=t)
         return _fan_particles(self, _float(X), _float(t))
 
 

@@ -33,15 +33,29 @@ and a vacuum forms between two rarefactions: there is no star state. The functio
 for everything the star state enters (``riemann_star``, ``riemann_waves``, ``riemann_solution``);
 ``vacuum_generated`` and the ``vacuum`` entry of ``riemann_waves`` tell that case apart.
 
-Input checks (positive densities and pressures, ``gamma > 1``, finite velocities, ``t > 0``) run when
-the values are concrete and raise a ``ValueError`` naming the parameter. Under ``jax.jit``,
-``jax.vmap`` or ``jax.grad`` the values are tracers and cannot be checked: bad values then give NaN.
+``riemann_star``, ``riemann_waves`` and ``riemann_solution`` solve one Riemann problem: the states
+and ``gamma`` are one number each, and ``jax.vmap`` over the function solves several.
+``vacuum_generated`` is elementwise and takes arrays of states.
+
+Input checks (positive densities and pressures, ``gamma > 1``, finite velocities, one number per
+state, ``t > 0``) run when the values are concrete and raise a ``ValueError`` naming the parameter.
+Under ``jax.jit``, ``jax.vmap`` or ``jax.grad`` the values are tracers and are not checked: bad values
+then give NaN or finite but meaningless values, and no error (a traced ``t = 0``, say, gives the
+initial states on either side of ``x0`` and a finite state at ``x0``; a traced ``t < 0`` gives a
+finite, mirrored wave pattern).
 """
 
 import jax
 import jax.numpy as jnp
 
-from ._checks import check_finite, check_greater, check_nonnegative, check_positive, check_real
+from ._checks import (
+    check_finite,
+    check_greater,
+    check_nonnegative,
+    check_positive,
+    check_real,
+    check_scalar,
+)
 
 _MAX_ITERATIONS = 60
 
@@ -59,6 +73,16 @@ def _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
         check_finite(name, value)
     check_real("gamma", gamma)
     check_greater("gamma", gamma, 1.0)
+
+
+def _check_one_problem(caller, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
+    """Check the states (``_check_states``) and that each of them and ``gamma`` is one number:
+    ``caller`` solves one Riemann problem (tracers pass, so ``jax.vmap`` solves several)."""
+    _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+    batch = f"; to solve several Riemann problems, jax.vmap over {caller}"
+    args = dict(rho_l=rho_l, u_l=u_l, p_l=p_l, rho_r=rho_r, u_r=u_r, p_r=p_r, gamma=gamma)
+    for name, value in args.items():
+        check_scalar(name, value, batch)
 
 
 def _sound_speed(rho, p, gamma):
@@ -178,9 +202,10 @@ def riemann_star(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
 
     Raises:
         ValueError: a concrete density or pressure is not > 0, a velocity is not finite, ``gamma`` is
-            not > 1, or a value is not a real number (tracers are not checked).
+            not > 1, a value is not a real number, or a value is an array with a shape (one problem
+            at a time: ``jax.vmap`` over this function solves several); tracers are not checked.
     """
-    _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+    _check_one_problem("riemann_star", rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
     args = [_float(a) for a in (rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)]
     return _star(*args)[:4]
 
@@ -198,10 +223,11 @@ def vacuum_generated(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
         gamma: as for ``riemann_star``.
 
     Returns:
-        ``2 (c_l + c_r) / (gamma - 1) <= u_r - u_l``, ``c = sqrt(gamma p / rho)``.
+        ``2 (c_l + c_r) / (gamma - 1) <= u_r - u_l``, ``c = sqrt(gamma p / rho)``, elementwise where
+        the states are arrays (this test, unlike ``riemann_star``, broadcasts).
 
     Raises:
-        ValueError: as for ``riemann_star``.
+        ValueError: as for ``riemann_star``, for any entry of an array (arrays are allowed here).
     """
     _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
     rho_l, u_l, p_l, rho_r, u_r, p_r, gamma = [_float(a) for a in (rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)]
@@ -262,9 +288,9 @@ def riemann_waves(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
         tail_l, contact, tail_r, head_r`` and the boolean ``vacuum``.
 
     Raises:
-        ValueError: as for ``riemann_star``.
+        ValueError: as for ``riemann_star`` (naming ``riemann_waves`` for ``jax.vmap``).
     """
-    _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+    _check_one_problem("riemann_waves", rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
     return _waves(*[_float(a) for a in (rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)])
 
 
@@ -295,10 +321,10 @@ def riemann_solution(x, t, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, x0=0.0):
         A dict with ``rho``, ``u``, ``p`` and ``e = p / ((gamma - 1) rho)`` at ``x``.
 
     Raises:
-        ValueError: as for ``riemann_star``, or a concrete ``t`` is not > 0, or ``x`` or ``x0`` is not
-            finite.
+        ValueError: as for ``riemann_star`` (naming ``riemann_solution`` for ``jax.vmap``), or a
+            concrete ``t`` is not > 0, or ``x`` or ``x0`` is not finite.
     """
-    _check_states(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+    _check_one_problem("riemann_solution", rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
     for name, value in (("x", x), ("x0", x0)):
         check_real(name, value)
         check_finite(name, value)

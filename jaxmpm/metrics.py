@@ -64,8 +64,9 @@ def exact_fields(scene: AbstractScene, body: Body, t: Float[ArrayLike, ""]) -> d
     """The exact fields at every real particle.
 
     A scene whose exact solution holds for a while only declares until when, ``t_valid``
-    (``VacuumExpansion``, ``Riemann``, ``ShockTube``, ``Detonation``); at a concrete ``t`` past it
-    there is none (``exact_holds``).
+    (``VacuumExpansion``, ``Riemann``, ``Detonation``); at a concrete ``t`` past it there is none
+    (``exact_holds``). ``ShockTube`` and ``Noh`` have no exact motion (their ``exact`` is ``None``,
+    and so is the result): their exact Euler solution is ``euler_errors``'s.
 
     Args:
         scene: the scene.
@@ -393,9 +394,10 @@ def errors(
     check it beside the errors (``Solution.status``, ``Ensemble.status``).
 
     A scene whose exact solution holds for a while only (``t_valid``: ``VacuumExpansion``,
-    ``Riemann``, ``ShockTube``, ``Detonation``) has none past it: at a concrete ``state.t`` past
-    ``t_valid`` the errors against it are ``None``, as for a scene with no exact solution
-    (``exact_holds`` says which).
+    ``Riemann``, ``Detonation``) has none past it: at a concrete ``state.t`` past ``t_valid`` the
+    errors against it are ``None``, as for a scene with no exact solution (``exact_holds`` says
+    which). ``ShockTube`` and ``Noh`` have no exact motion (``exact`` is ``None``): their errors
+    here are ``None``, and ``euler_errors`` measures them against their exact Euler solution.
 
     Args:
         scene: the scene.

@@ -374,11 +374,26 @@ class RadialSolution(eqx.Module):
         linear between cell centres (constant beyond the first and last centres).
 
         Args:
-            R: reference radii, in ``[0, radius]``.
+            R: reference radii, in ``[0, radius]`` (``radius`` is the last node, ``R_nodes[-1]``; a
+                radius beyond it by round-off, a relative ``1e-12``, is taken as the surface).
 
         Returns:
             ``{"r", "v", "rho", "J"}``, each at ``R`` at every time of ``ts``.
+
+        Raises:
+            ValueError: a concrete ``R`` (any entry) is not a finite real number or lies outside
+                ``[0, radius]`` (the fields are not extrapolated); a traced ``R`` is not checked
+                (outside the charge it takes the nearest end's values).
         """
+        check_finite("R", R)
+        if is_concrete(R) and is_concrete(self.R_nodes):
+            end = float(self.R_nodes[-1])
+            radii = np.asarray(R, dtype=float)
+            if radii.size and not (radii.min() >= 0.0 and radii.max() <= end * (1 + 1e-12)):
+                raise ValueError(
+                    f"R must lie in the charge, 0 <= R <= {end!r}, got values from {float(radii.min())!r} "
+                    f"to {float(radii.max())!r}"
+                )
         R = jnp.asarray(R, dtype=self.R.dtype)
 
         def interp(xp, fp):
@@ -632,6 +647,10 @@ def radial_profile_convergence(
         ``|v|`` and ``rho``; ``r_free_diff``, the free surfaces' difference (m); and, on every row
         but the last, ``v_order``, ``rho_order`` and ``r_free_order``, the observed orders
         ``log(d_i / d_{i+1}) / log(k)`` from this row's differences and the next row's.
+        Undefined values are NaN, without a warning: ``v_l1_rel`` at a time where the finer
+        resolution's velocity is zero everywhere (at ``t = 0``, the gas at rest: ``v_l1`` is 0
+        there), and an order where both differences are zero (every resolution agrees exactly, as
+        at ``t = 0``); an order where only one difference is zero is ``+inf`` or ``-inf``.
 
     Raises:
         ValueError: ``cells`` is not a sequence of integers >= 2, holds fewer than three
@@ -658,11 +677,15 @@ def radial_profile_convergence(
         rho_c, rho_f = np.asarray(coarse.rho), float(rho0) / J_f
         v_l1 = np.sum(m * np.abs(v_c - v_f), axis=1) / np.sum(m)
         rho_l1 = np.sum(V * np.abs(rho_c - rho_f), axis=1) / np.sum(V)
+        v_norm = np.sum(m * np.abs(v_f), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # The gas at rest (t = 0) has no velocity to measure a relative difference against: NaN.
+            v_l1_rel = np.where(v_norm > 0, v_l1 * np.sum(m) / v_norm, np.nan)
         rows.append(
             dict(
                 cells=n,
                 v_l1=v_l1,
-                v_l1_rel=v_l1 * np.sum(m) / np.sum(m * np.abs(v_f), axis=1),
+                v_l1_rel=v_l1_rel,
                 rho_l1=rho_l1,
                 rho_l1_rel=rho_l1 * np.sum(V) / np.sum(V * rho_f, axis=1),
                 r_free_diff=np.abs(np.asarray(coarse.r_free) - np.asarray(fine.r_free)),

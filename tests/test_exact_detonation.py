@@ -354,3 +354,70 @@ def test_transformations():
 def test_bad_input_raises(call, name):
     with pytest.raises(ValueError, match=f"^{name} "):
         call()
+
+
+_FAN = None
+
+
+def _fan():
+    global _FAN
+    if _FAN is None:
+        _FAN = isentrope_fan(gamma_law_isentrope(RHO0, D, 3.0), RHO0, D, 0.75)
+    return _FAN
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (
+            lambda: gamma_law_fields(jnp.ones(3), jnp.ones(2), RHO0, D, 3.0),
+            r"^x and t must broadcast together, got x of shape \(3,\) and t of shape \(2,\)$",
+        ),
+        (
+            lambda: gamma_law_particles(jnp.ones(3), jnp.ones(2), RHO0, D, 3.0),
+            r"^X and t must broadcast together, got X of shape \(3,\) and t of shape \(2,\)$",
+        ),
+        (
+            lambda: gamma_law_fields(jnp.ones(3), T, jnp.full(2, RHO0), D, 3.0),
+            r"^x and rho0 must broadcast together, got x of shape \(3,\) and rho0 of shape \(2,\)$",
+        ),
+        (
+            lambda: gamma_law_particles(jnp.ones(3), jnp.ones(2), RHO0, D, jnp.full(4, 3.0)),
+            r"^X, t and gamma must broadcast together, got X of shape \(3,\), t of shape \(2,\) and "
+            r"gamma of shape \(4,\)$",
+        ),
+        (
+            lambda: _fan().fields(jnp.ones(3), jnp.ones(2)),
+            r"^x and t must broadcast together, got x of shape \(3,\) and t of shape \(2,\)$",
+        ),
+        (
+            lambda: _fan().particles(jnp.ones(3), jnp.ones(2)),
+            r"^X and t must broadcast together, got X of shape \(3,\) and t of shape \(2,\)$",
+        ),
+    ],
+)
+def test_shapes_that_do_not_broadcast_are_refused_by_name(call, match):
+    """Not JAX's "TypeError: ... incompatible shapes for broadcasting"."""
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_positions_and_times_broadcast():
+    """A column of positions against a row of times: the grid of both, as each alone gives it."""
+    ts = jnp.array([1.0, 2.0]) * T
+    for f, pos in ((gamma_law_fields, X * T), (gamma_law_particles, X)):
+        grid = f(pos[:, None], ts[None, :], RHO0, D, 3.0)
+        assert grid["p"].shape == (3, 2)
+        for j, t in enumerate(ts):
+            _close(grid["p"][:, j], f(pos, t, RHO0, D, 3.0)["p"], RHO0 * D**2, 0.0)
+
+
+def test_traced_bad_time_is_not_checked_and_gives_finite_meaningless_values():
+    """As the module docstring says: a traced t < 0 raises nothing and gives finite values (the wall's
+    state at rest everywhere), where a concrete one is refused."""
+    x = jnp.array([-0.1, 0.0, 0.1])
+    out = jax.jit(lambda t: gamma_law_fields(x, t, RHO0, D, 3.0))(-1.0)
+    assert np.all(np.isfinite(np.asarray(out["p"])))
+    _close(out["p"], gamma_law_wall_pressure(RHO0, D, 3.0) * jnp.ones(3), RHO0 * D**2, 1e-15)
+    with pytest.raises(ValueError, match=r"^t must be > 0, got -1\.0$"):
+        gamma_law_fields(x, -1.0, RHO0, D, 3.0)

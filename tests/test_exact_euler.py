@@ -401,3 +401,47 @@ def test_traced_values_are_not_checked():
     """Under jit a negative pressure cannot be seen: it gives NaN, not an error."""
     p = jax.jit(lambda q: riemann_star(1.0, 0.0, q, 0.125, 0.0, 0.1, GAMMA)[0])(-1.0)
     assert np.isnan(float(p))
+
+
+NAMES = ("rho_l", "u_l", "p_l", "rho_r", "u_r", "p_r", "gamma")
+
+
+@pytest.mark.parametrize("index", range(7))
+def test_arrays_of_states_are_refused_by_name(index):
+    """One Riemann problem at a time: an array state is named (not JAX's "cond_fun must return a
+    boolean scalar"), with jax.vmap over the function called as the way to solve several."""
+    args = [*SOD, GAMMA]
+    args[index] = np.array([args[index], args[index]])
+    name = NAMES[index]
+    for f in (riemann_star, riemann_waves):
+        with pytest.raises(ValueError) as info:
+            f(*args)
+        assert str(info.value) == (
+            f"{name} must be one number, got an array of shape (2,); to solve several Riemann "
+            f"problems, jax.vmap over {f.__name__}"
+        )
+    with pytest.raises(
+        ValueError,
+        match=rf"^{name} must be one number, got an array of shape \(2,\); to solve several Riemann "
+        r"problems, jax\.vmap over riemann_solution$",
+    ):
+        riemann_solution(0.1, 0.1, *args)
+
+
+def test_zero_dimensional_states_and_elementwise_vacuum_test_are_taken():
+    """A 0-d array is one number; ``vacuum_generated`` stays elementwise over arrays of states."""
+    p, u, _, _ = riemann_star(*[np.asarray(a) for a in (*SOD, GAMMA)])
+    assert abs(float(p) - 0.30313) < 5e-6 and abs(float(u) - 0.92745) < 5e-6
+    flags = vacuum_generated(1.0, np.array([0.0, -10.0]), 1.0, 1.0, np.array([0.0, 10.0]), 1.0, GAMMA)
+    np.testing.assert_array_equal(np.asarray(flags), [False, True])
+
+
+def test_traced_bad_time_is_not_checked_and_gives_finite_meaningless_values():
+    """As the module docstring says: a traced t = 0 raises nothing and gives no NaN off x0, but the
+    initial states (t = 0 concrete is refused)."""
+    x = np.array([-0.1, 0.1])
+    out = jax.jit(lambda t: riemann_solution(x, t, *SOD, GAMMA))(0.0)
+    np.testing.assert_array_equal(np.asarray(out["rho"]), [1.0, 0.125])
+    np.testing.assert_array_equal(np.asarray(out["p"]), [1.0, 0.1])
+    with pytest.raises(ValueError, match=r"^t must be > 0, got 0\.0$"):
+        riemann_solution(x, 0.0, *SOD, GAMMA)

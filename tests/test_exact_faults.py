@@ -248,3 +248,55 @@ def test_surface_convergence_at_t_0_has_no_order_to_measure():
 )
 def test_radial_profile_convergence_refuses_bad_resolutions_by_name(cells, match):
     _one_line(lambda: reference.radial_profile_convergence(**GAS, dim=2, ts=[1e-4], cells=cells), match)
+
+
+# ---------------------------------------------------------------- RadialSolution.at and profile rel. errors
+
+
+@pytest.fixture(scope="module")
+def radial_small():
+    return reference.gas_radial(**GAS, dim=2, ts=[0.0, 1e-4], cells=20)
+
+
+_OUTSIDE = r"^R must lie in the charge, 0 <= R <= 0\.5, got values from "
+
+
+@pytest.mark.parametrize(
+    "R, match",
+    [
+        (np.array([-1.0, 0.25, 2.0]), _OUTSIDE + r"-1\.0 to 2\.0$"),
+        (0.5 + 1e-9, _OUTSIDE + r"0\.500000001 to 0\.500000001$"),
+        (-1e-300, _OUTSIDE + r"-1e-300 to -1e-300$"),
+        (math.nan, r"^R must be finite, got nan$"),
+        (np.array([0.1, math.inf]), r"^R must be finite, got \[0\.1 inf\]$"),
+    ],
+)
+def test_radial_at_refuses_radii_outside_the_charge(radial_small, R, match):
+    # not the end values, clamped, nor NaN
+    _one_line(lambda: radial_small.at(R), match)
+
+
+def test_radial_at_takes_the_ends_and_round_off_beyond_the_surface(radial_small):
+    sol = radial_small
+    ends = sol.at(np.array([0.0, GAS["radius"]]))
+    np.testing.assert_array_equal(np.asarray(ends["r"]), np.asarray(sol.r)[:, [0, -1]])
+    beyond = sol.at(GAS["radius"] * (1 + 1e-13))  # a radius computed with round-off
+    np.testing.assert_array_equal(np.asarray(beyond["v"]), np.asarray(sol.v)[:, -1])
+    # traced radii are not checked
+    v = jax.jit(lambda R: sol.at(R)["v"])(2.0)
+    np.testing.assert_array_equal(np.asarray(v), np.asarray(sol.v)[:, -1])
+
+
+def test_radial_profile_convergence_at_t_0_is_nan_without_a_warning():
+    """At t = 0 the gas is at rest: v_l1 is 0 and its relative value is undefined (NaN), not 0 / 0 with a
+    RuntimeWarning; the orders there are NaN too; later times are finite."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rows = reference.radial_profile_convergence(**GAS, dim=2, ts=[0.0, 1e-4], cells=(10, 20, 40))
+    for row in rows:
+        assert float(row["v_l1"][0]) == 0.0 and np.isnan(row["v_l1_rel"][0])
+        assert float(row["rho_l1_rel"][0]) == 0.0
+        assert np.isfinite(row["v_l1_rel"][1]) and row["v_l1_rel"][1] > 0.0
+    assert np.isnan(rows[0]["v_order"][0]) and np.isfinite(rows[0]["v_order"][1])
