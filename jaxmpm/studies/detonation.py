@@ -841,13 +841,16 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     conv = result["convergence"]
     for ax, q, label in zip(axes, ("F_rms_rel", "p_rms_rel"), ("F", "p")):
         for o in conv["orders"]:
-            rr = [r for r in conv["rows"] if r["interpolator"] == o["interpolator"] and r[q] is not None]
+            mine = [r for r in conv["rows"] if r["interpolator"] == o["interpolator"]]
+            rr = [r for r in mine if r[q] is not None]
+            left_out = [str(r["cells"]) for r in mine if r[q] is None]
+            note = f"; not shown, broke down: {', '.join(left_out)} cells" if left_out else ""
             order = o[f"{q}_order_fit"]
             ax.loglog(
                 [L / r["cells"] * 1e3 for r in rr],
                 [r[q] for r in rr],
                 "o-",
-                label=f"{o['interpolator']} (order {number(order, '.2f')})",
+                label=f"{o['interpolator']} (order {number(order, '.2f')}{note})",
             )
         hs = [L / c * 1e3 for c in sorted({r["cells"] for r in conv["rows"]})]
         ax.set_xticks(hs, [f"{h:.3g}" for h in hs])

@@ -286,9 +286,10 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
     ax = fig.subplots()
     v_g = result["resolution"][0]["gurney"]
     for r in result["resolution"] + result["strength"][1:]:
-        if r["failure"] is not None:
-            continue
         label = f"CPDI, {r['cells']} cells" + (", strength" if r["strength"] else "")
+        if r["failure"] is not None:  # named in the legend, not drawn
+            ax.plot([], [], " ", label=f"{label}: broke down, not shown")
+            continue
         ax.plot(1e6 * np.asarray(r["t"]), r["v_ring"], "--" if r["strength"] else "-", label=label)
     ax.axhline(v_g, color="k", lw=0.8, ls=":", label=f"Gurney {v_g:.0f} m/s")
     ax.set_xlabel("t (us)")
