@@ -249,7 +249,9 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
         n = len(ts) if int(r.solution.state.fail_step) < 0 else int(r.solution.state.fail_step)
         sep = [float(np.max(np.abs(jm.separation(state_at(r.solution, k), body)))) for k in range(n)]
         panel = "artificial cells" if r.artificial_cells else "no artificial cells"
-        series.setdefault(panel, []).append((r.method, ts[:n], np.maximum(sep, 1e-17)))
+        failed_at = int(r.solution.state.fail_step)
+        label = r.method if failed_at < 0 else f"{r.method} (broke down at step {failed_at})"
+        series.setdefault(panel, []).append((label, ts[:n], np.maximum(sep, 1e-17)))
     path = OUTPUTS.check(out / "separation.png")
     plotting.time_series(
         series,
