@@ -649,7 +649,7 @@ def simulate(
             agree to round-off.
         viscosity: ``ArtificialViscosity()`` to damp the ringing behind shocks; ``None`` (default).
         volume_average: ``None`` (default), ``"cell"`` or ``"node"``: the stress at the volume-averaged
-            ``F`` (J-bar, ``jaxmpm.Model``).
+            ``F`` (J-bar, ``jaxmpm.Model``); refused for regions of different materials.
         devices: ``None`` (default: one device), a count ``k`` (the first ``k`` of ``jax.devices()``)
             or a sequence of devices: the particles are sharded over them, the grid replicated and
             its sums added across them each step. Equal to the run on one device to round-off.

@@ -259,7 +259,8 @@ class Model(eqx.Module):
             w_ip V0_p J_p / sum_p w_ip V0_p``, and interpolates it back, ``J_bar_p = sum_i w_ip J_i``
             (a continuous, piecewise linear field for linear shape functions). The state's ``F``
             itself is not averaged; an energy equation takes the work of the averaged volume
-            change, both ``J`` of the step averaged with the same weights.
+            change, both ``J`` of the step averaged with the same weights. A scene whose regions
+            are of different materials is refused (the average would mix their volume changes).
         devices: ``None`` (default: one device), or the devices one run is spread over (static): the
             particles are sharded over a 1D mesh of them (``jax.sharding``), the grid is replicated.
             Each device scatters its own particles to the grid, the partial grid sums are added
@@ -297,7 +298,30 @@ class Model(eqx.Module):
                 f"volume_average must be None or one of {', '.join(map(repr, VOLUME_AVERAGES))}, got "
                 f"{self.volume_average!r}"
             )
+        if self.volume_average is not None:
+            _check_one_material(self.scene)
         check_float_type(self.scene)
+
+
+def _check_one_material(scene: AbstractScene) -> None:
+    """Refuse volume averaging on regions of different materials: ``J_bar`` averages over the
+    particles of a cell or node whatever their region, and would give a stiff material the volume
+    change of a soft neighbour (a gas against copper broke down at once)."""
+    if scene.regions is None:
+        return
+    materials = [r.material for r in scene.regions()]
+    first = materials[0]
+    for k, m in enumerate(materials[1:], start=1):
+        same_type = type(m) is type(first)
+        concrete = all(is_concrete(a) for a in jax.tree.leaves((first, m)))
+        if not same_type or (concrete and not bool(eqx.tree_equal(first, m))):
+            other = type(m).__name__ + ("" if not same_type else " with other constants")
+            raise ValueError(
+                f"volume_average averages J over the particles of a cell or node, whatever their region, "
+                f"and region {k} of {type(scene).__name__} is of another material ({other}) "
+                f"than region 0 ({type(first).__name__}): it would mix their volume changes; run without "
+                "volume_average"
+            )
 
 
 def check_float_type(scene: AbstractScene) -> None:

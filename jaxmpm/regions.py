@@ -26,7 +26,7 @@ from jaxtyping import Array, Float
 from ._checks import check_nonnegative, check_positive, check_real, is_concrete
 from ._util import ONE_VALUE, as_float, check_real_fields, corner_signs, lattice
 from .geometry import AbstractShape
-from .materials import AbstractEOS, AbstractMaterial
+from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
 from .particles import Body
 
 
@@ -142,14 +142,16 @@ def layout(cells: tuple[int, ...], ppc: int, shapes: tuple[AbstractShape, ...], 
         cells: cells of the box along each axis.
         ppc: particles per cell and axis.
         shapes: one shape per region, in cells.
-        pad: cells of grid beyond the box on each side (a shape must not reach past the grid).
+        pad: cells of grid beyond the box on each side. A shape is cut to the box: only the
+            lattice's particle centres inside it are the region's, so a shape may reach past the box
+            (a ball about a corner of a quarter domain, say).
 
     Returns:
         The ``Layout``.
 
     Raises:
-        ValueError: a shape of the wrong dimension, a region reaching past the grid, a region with no
-            particle, or a particle inside two regions (naming them).
+        ValueError: a shape of the wrong dimension, a region lying wholly outside the grid, a region
+            with no particle (in the box), or a particle inside two regions (naming them).
     """
     dim = len(cells)
     if not shapes:
@@ -238,8 +240,10 @@ def seed_regions(lay: Layout, h: Float[Array, ""], rho0: Float[Array, " regions"
 
 
 def initial_sound_speed(region: Region, dim: int) -> Float[Array, ""]:
-    """A region's sound speed in its initial state (at rest, ``F = I``); for an EOS with a front (a
-    programmed detonation) at least the front's speed.
+    """A region's sound speed in its initial state (at rest, ``F = I``), the speed the step's stability
+    check uses: for an ``ElasticPlastic`` material the longitudinal elastic wave's,
+    ``sqrt(c_eos^2 + 4 G / (3 rho0))``; for an EOS with a front (a programmed detonation) at least the
+    front's speed.
 
     Args:
         region: the region.
@@ -252,6 +256,8 @@ def initial_sound_speed(region: Region, dim: int) -> Float[Array, ""]:
     if isinstance(mat, AbstractEOS):
         z = mat.initial_internal(jnp.zeros((dim,), dtype=region.rho0.dtype))
         c = mat.sound_speed(region.rho0, region.energy, z)
+        if isinstance(mat, ElasticPlastic):  # the longitudinal elastic wave, as in the step's check
+            c = jnp.sqrt(c * c + 4.0 * mat.G / (3.0 * region.rho0))
         front = mat.front_speed()
         return c if front is None else jnp.maximum(c, front)
     return mat.sound_speed(jnp.eye(dim, dtype=region.rho0.dtype), region.rho0)

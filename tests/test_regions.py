@@ -379,3 +379,44 @@ def test_vtk_frames_carry_region_energy_and_internal_variables(tmp_path):
     with pytest.raises(ValueError, match="lacks"):  # a history without the energy cannot be written
         bare = jm.simulate(scene, jm.CPDI(), dt=1e-3, steps=30, saveat=jm.SaveAt(every=10))
         jm.vtk.write_series(tmp_path / "bare", model, bare)
+
+
+def test_every_regions_density_is_checked_for_particle_masses_float64_cannot_hold():
+    """Only the first region's density was checked: a second region of rho0 = 1e306 ran with infinite
+    masses, a NaN energy and status 0."""
+    gas = jm.IdealGas(gamma=1.4)
+
+    def bodies(rho_first, rho_second):
+        first = jm.Region(Box(0, 5), gas, rho0=rho_first, energy=1.0)
+        return jm.Bodies(parts=(first, jm.Region(Box(5, 10), gas, rho0=rho_second, energy=1.0)), h=1e3, ppc=1)
+
+    for first, second, who in ((1e306, 1.0, ""), (1.0, 1e306, "region 1's ")):
+        with pytest.raises(ValueError, match=rf"^h=1000 and {who}rho0=1e\+306 give particles of volume"):
+            bodies(first, second)
+
+
+def test_bodies_take_a_list_of_parts_and_name_what_is_not_one():
+    gas = jm.IdealGas(gamma=1.4)
+    a, b = (jm.Region(Box(lo, lo + 5), gas, rho0=1.0, energy=1.0) for lo in (0, 5))
+    assert jm.Bodies(parts=[a, b]).parts == (a, b)
+    with pytest.raises(
+        ValueError,
+        match=r"^parts must be a non-empty tuple \(or list\) .*, got tuple of \['Region', 'int'\]$",
+    ):
+        jm.Bodies(parts=(a, 3))
+    with pytest.raises(
+        ValueError, match=r"got a Region \(a single region goes in a tuple: parts=\(region,\)\)$"
+    ):
+        jm.Bodies(parts=a)
+
+
+def test_wave_speed_of_an_elastic_plastic_region_is_the_longitudinal_wave_the_step_checks():
+    """``wave_speed`` is the speed the step's stability check uses: for copper with strength
+    sqrt(c_eos^2 + 4 G / (3 rho0)) = sqrt(3940^2 + 4 46e9 / (3 8930)), so a step at CFL 0.9 of it runs
+    (with the EOS's 3940 m/s alone it failed its stability check at step 1)."""
+    cu = jm.ElasticPlastic(jm.MieGruneisen(**jm.MIE_GRUNEISEN["copper"]), **jm.STRENGTH["copper"])
+    scene = jm.Bodies(parts=(jm.Region(Box(0, 10), cu, rho0=8930.0, velocity=10.0),), cells=10, h=1e-3)
+    c = float(np.sqrt(3940.0**2 + 4 * 46e9 / (3 * 8930.0)))
+    assert float(scene.wave_speed) == pytest.approx(c, rel=1e-12)
+    sol = jm.simulate(scene, jm.CPDI(), dt=0.9 * 1e-3 / (c + 10.0), steps=2)
+    assert sol.failure() is None

@@ -82,3 +82,24 @@ def test_volume_average_is_refused_by_name_and_changes_a_blast():
         ).state.x[-1, 0]
     )(1.5e5)
     assert np.isfinite(float(g)) and float(g) > 0.0
+
+
+def test_volume_average_is_refused_for_regions_of_different_materials():
+    """A gas disk in copper with J-bar broke down at once (the copper took the gas's volume change);
+    regions of one material (a shock tube's two gas states) are taken."""
+    from jaxmpm.geometry import Ball, Box
+
+    gas, cu = jm.IdealGas(gamma=1.4), jm.MieGruneisen(**jm.MIE_GRUNEISEN["copper"])
+    disk = jm.Region(Ball((6.0, 6.0), 3.3), gas, rho0=100.0, energy=2.5e6, velocity=(0.0, 0.0))
+    rest = jm.Region(Box((0, 0), (12, 12)) - Ball((6.0, 6.0), 3.3), cu, rho0=8930.0)
+    scene = jm.Bodies(parts=(disk, rest), cells=12, h=1e-3, pad=4, dim=2)
+    for kind in ("cell", "node"):
+        with pytest.raises(
+            ValueError,
+            match=r"^volume_average averages J over the particles of a cell or node, whatever their region, "
+            r"and region 1 of Bodies is of another material \(MieGruneisen\) than region 0 \(IdealGas\)",
+        ):
+            jm.simulate(scene, jm.CPDI(), dt=1e-8, steps=1, volume_average=kind)
+    tube = jm.ShockTube(cells=8)
+    sol = jm.simulate(tube, jm.CPDI(), dt=1e-4, steps=1, volume_average="cell")
+    assert sol.failure() is None

@@ -18,13 +18,17 @@ from ..particles import Body, seed_box
 from ..regions import Layout, Region, initial_sound_speed, layout, seed_regions
 
 
-def _check_particle_sizes(h, rho0, ppc, dim) -> None:
+def _check_particle_sizes(h, rho0, ppc, dim, region: int | None = None) -> None:
     """Refuse a cell size and density whose particle volume ``(h / ppc)^dim`` or mass overflows to
     infinity or underflows to 0 in float64 (a run of them gave NaN and infinite diagnostics with a
     healthy status). Tracers pass.
 
+    Args:
+        h, rho0, ppc, dim: the scene's cell size, a density, particles per cell and axis, dimension.
+        region: the region whose density ``rho0`` is (named in the message), or ``None``.
+
     Raises:
-        ValueError: naming ``h`` and ``rho0`` and the volume or mass they give.
+        ValueError: naming ``h`` and ``rho0`` (and the region) and the volume or mass they give.
     """
     if not (is_concrete(h) and is_concrete(rho0)):
         return
@@ -32,10 +36,11 @@ def _check_particle_sizes(h, rho0, ppc, dim) -> None:
         volume = (np.float64(h) / ppc) ** dim
         mass = np.float64(rho0) * volume
     if not (np.isfinite(mass) and mass > 0 and volume > 0):
+        whose = "" if region is None else f"region {region}'s "
         raise ValueError(
-            f"h={float(h):.6g} and rho0={float(rho0):.6g} give particles of volume {volume:.3g} and mass "
-            f"{mass:.3g} ({ppc} per cell and axis, {dim}D), beyond float64's range: choose units in which "
-            "both are finite and not 0"
+            f"h={float(h):.6g} and {whose}rho0={float(rho0):.6g} give particles of volume {volume:.3g} and "
+            f"mass {mass:.3g} ({ppc} per cell and axis, {dim}D), beyond float64's range: choose units in "
+            "which both are finite and not 0"
         )
 
 
@@ -136,6 +141,8 @@ class AbstractScene(eqx.Module):
                 raise ValueError(
                     f"{type(self).__name__}.regions must return a tuple of Region, got {regions!r}"
                 )
+            for k, r in enumerate(regions[1:], start=1):  # the first region's is the scene's rho0
+                _check_particle_sizes(self.h, r.rho0, self.ppc, self.dim, region=k)
             self.layout()  # shapes with no particle, overlapping regions, regions off the grid
 
     @abc.abstractmethod

@@ -25,7 +25,8 @@ class Bodies(AbstractScene):
     Not in ``SCENES``: its regions are Python objects, not command-line parameters.
 
     Attributes:
-        parts: the regions, in order (a particle belongs to the one region whose shape holds it).
+        parts: the regions, a tuple or list, in order (a particle belongs to the one region whose
+            shape holds it).
         dim: 1, 2 or 3 (static).
         left, right: the low and high faces of every axis: ``"free"``, ``"wall"`` or ``"symmetry"``
             (static).
@@ -40,7 +41,7 @@ class Bodies(AbstractScene):
     initial_position: ClassVar[None] = None
     smooth: ClassVar[None] = None
 
-    parts: tuple[Region, ...]
+    parts: tuple[Region, ...] = eqx.field(converter=lambda v: tuple(v) if isinstance(v, list) else v)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     cells: int = eqx.field(static=True, default=10)
     ppc: int = eqx.field(static=True, default=2)
@@ -58,7 +59,12 @@ class Bodies(AbstractScene):
             or not self.parts
             or not all(isinstance(r, Region) for r in self.parts)
         ):
-            raise ValueError(f"parts must be a non-empty tuple of jaxmpm.regions.Region, got {self.parts!r}")
+            got = (
+                f"{type(self.parts).__name__} of {[type(r).__name__ for r in self.parts]}"
+                if isinstance(self.parts, tuple)
+                else f"a {type(self.parts).__name__} (a single region goes in a tuple: parts=(region,))"
+            )
+            raise ValueError(f"parts must be a non-empty tuple (or list) of jaxmpm.regions.Region, got {got}")
 
     @property
     def rho0(self) -> Float[Array, ""]:
