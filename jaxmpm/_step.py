@@ -670,8 +670,9 @@ def start_state(model: Model, setup: Setup) -> State:
     # non-finite field (a scene's initial_position or velocity) fails at step 0, and no step is taken.
     finite = _finite_particles(body, x, v, F, sigma, corners, e, internal)
     checks = [(st_bits.NONFINITE, ~finite), (st_bits.NONPOSITIVE_F, det(F) <= 0.0)]
-    if e is not None:
-        checks.append((st_bits.NEGATIVE_ENERGY, e < 0.0))
+    negative = None if e is None else _negative_energy(model, setup, e)
+    if negative is not None:
+        checks.append((st_bits.NEGATIVE_ENERGY, negative))
     status, particle = st_bits.combine(checks, sharded=model.devices is not None)
     return State(
         t=jnp.zeros((), dtype=dtype),
@@ -1216,7 +1217,9 @@ def _propose(model, setup, state, dt, limit, active, t_new):
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     if e_new is not None:
-        checks.append((st_bits.NEGATIVE_ENERGY, e_new < 0.0))
+        negative = _negative_energy(model, setup, e_new)
+        if negative is not None:
+            checks.append((st_bits.NEGATIVE_ENERGY, negative))
     if tension is not None:
         checks.append((st_bits.PRODUCTS_TENSION, tension))
     lo, hi = interp.extent(body.r0, x_p, F_new, _particle_corners(new, body))
@@ -1458,6 +1461,20 @@ def fold_massless(
         kept = kept + jnp.where(m[..., None], moved, 0.0)
         stray = jnp.where(m[..., None], 0.0, moved)
     return kept.reshape((-1,) + f.shape[d:])
+
+
+def _negative_energy(model: Model, setup: Setup, e) -> Bool[Array, " n"] | None:
+    """The particles whose specific internal energy ``e`` is negative where their material holds it
+    non-negative (``AbstractEOS.nonnegative_energy``); ``None`` where no material does (nothing to
+    check, nothing compiled)."""
+    groups = _groups(model, setup)
+    bounded = [isinstance(g.material, AbstractEOS) and g.material.nonnegative_energy() for g in groups]
+    if all(bounded):
+        return e < 0.0
+    if not any(bounded):
+        return None
+    parts = [jnp.full(_take(e, g.index).shape, b) for g, b in zip(groups, bounded)]
+    return (e < 0.0) & _assemble(parts, groups, e.shape[0])
 
 
 def _finite_particles(body: Body, x, v, F, sigma, corners, e, internal) -> Bool[Array, " n"]:

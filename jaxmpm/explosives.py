@@ -75,6 +75,9 @@ class JWL(AbstractStatelessEOS):
         ) * jnp.exp(-self.R2 * V)
         return a, self.w * rho
 
+    def nonnegative_energy(self):
+        return True
+
 
 class JWLIsentrope(AbstractStatelessEOS):
     """The JWL principal isentrope, barotropic: ``p = A exp(-R1 V) + B exp(-R2 V) + C V^-(w + 1)``.
@@ -138,6 +141,9 @@ class JWLIsentrope(AbstractStatelessEOS):
         p = p + self.C * power(V, -(self.w + 1.0))
         return p, jnp.zeros_like(rho)
 
+    def nonnegative_energy(self):
+        return True
+
 
 class GammaLawIsentrope(AbstractStatelessEOS):
     """Products on the CJ isentrope of a gamma-law detonation: ``p = p_CJ (V / V_CJ)^-gamma``.
@@ -193,6 +199,9 @@ class GammaLawIsentrope(AbstractStatelessEOS):
         p = self.rho0 * self.D**2 / g1 * power(V * g1 / self.gamma, -self.gamma)
         return p, jnp.zeros_like(rho)
 
+    def nonnegative_energy(self):
+        return True
+
 
 class Murnaghan(AbstractStatelessEOS):
     """Unreacted explosive, Murnaghan's EOS in Uintah's form: ``p = (J^-n - 1) / (n K)``, ``J = rho0 / rho``.
@@ -238,6 +247,9 @@ class Murnaghan(AbstractStatelessEOS):
         del z
         J = self.rho0 / rho
         return (power(J, -self.n) - 1.0) / (self.n * self.K), jnp.zeros_like(rho)
+
+    def nonnegative_energy(self):
+        return True
 
 
 # The CJ search: D^2 on the products' Hugoniot, scanned on a grid of J, then a bracketed Newton step
@@ -706,3 +718,11 @@ class ProgrammedBurn(AbstractEOS):
             ``D``.
         """
         return self.D
+
+    def nonnegative_energy(self):
+        """``True``: the explosive's energy (the reactant's, then the products' from ``e0``) stays >= 0.
+
+        Returns:
+            ``True``.
+        """
+        return True

@@ -267,9 +267,10 @@ class AbstractEOS(eqx.Module):
     viscosity), with the pressure taken at the middle of the step (the trapezoid rule, solved
     exactly because ``p`` is affine in ``e``; Wilkins, "Calculation of elastic-plastic flow", 1964).
 
-    A concrete EOS implements ``pressure_terms``, ``initial_internal``, ``update_internal`` and
-    ``front_speed``; one without internal variables or a front of its own derives from
-    ``AbstractStatelessEOS`` and implements ``pressure_terms`` alone.
+    A concrete EOS implements ``pressure_terms``, ``initial_internal``, ``update_internal``,
+    ``front_speed`` and ``nonnegative_energy``; one without internal variables or a front of its own
+    derives from ``AbstractStatelessEOS`` and implements ``pressure_terms`` and
+    ``nonnegative_energy``.
     """
 
     def __post_init__(self):
@@ -341,6 +342,17 @@ class AbstractEOS(eqx.Module):
             The speed, or ``None`` for a material without such a front.
         """
 
+    @abc.abstractmethod
+    def nonnegative_energy(self) -> bool:
+        """Whether the specific internal energy ``e`` is >= 0 in every state of this material (an
+        ideal gas's, whose pressure ``(gamma - 1) rho e`` would turn negative with it), so that a step
+        leaving a particle with ``e < 0`` is a breakdown (``jaxmpm.status.NEGATIVE_ENERGY``); ``False``
+        where ``e`` is measured from a reference state and may go below it (Mie-Grueneisen).
+
+        Returns:
+            The flag (static: it decides what the compiled step checks).
+        """
+
     def pressure(
         self, rho: Float[Array, ""], e: Float[Array, ""], z: dict[str, Array] | None = None
     ) -> Float[Array, ""]:
@@ -380,7 +392,8 @@ class AbstractEOS(eqx.Module):
 
 class AbstractStatelessEOS(AbstractEOS):
     """An EOS without internal variables or a front of its own: a concrete one implements
-    ``pressure_terms`` alone (the ideal gas, Mie-Grueneisen, the explosives' products and reactants)."""
+    ``pressure_terms`` and ``nonnegative_energy`` (the ideal gas, Mie-Grueneisen, the explosives'
+    products and reactants)."""
 
     def initial_internal(self, X):
         del X
@@ -412,6 +425,9 @@ class IdealGas(AbstractStatelessEOS):
     def pressure_terms(self, rho, z):
         del z
         return jnp.zeros_like(rho), (self.gamma - 1.0) * rho
+
+    def nonnegative_energy(self):
+        return True
 
 
 class MieGruneisen(AbstractStatelessEOS):
@@ -450,6 +466,15 @@ class MieGruneisen(AbstractStatelessEOS):
         eta = 1.0 - self.rho_ref / rho
         p_h = self.rho_ref * self.c0**2 * eta / jnp.square(1.0 - self.s * eta)
         return p_h * (1.0 - 0.5 * self.Gamma0 * eta), self.Gamma0 * self.rho_ref * jnp.ones_like(rho)
+
+    def nonnegative_energy(self):
+        """``False``: ``e`` is measured from the reference state (``rho_ref``, ``e = 0``, ``p = 0``), and a
+        solid released from it, or started off it, may go below (``e < 0`` is no breakdown).
+
+        Returns:
+            ``False``.
+        """
+        return False
 
 
 MIE_GRUNEISEN: dict[str, dict[str, float]] = {
@@ -518,6 +543,14 @@ class ElasticPlastic(AbstractEOS):
 
     def front_speed(self):
         return None
+
+    def nonnegative_energy(self):
+        """As its pressure's, ``eos`` (``e`` holds the elastic strain energy and the plastic work on top).
+
+        Returns:
+            ``eos.nonnegative_energy()``.
+        """
+        return self.eos.nonnegative_energy()
 
     def deviatoric(
         self,

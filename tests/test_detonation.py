@@ -164,6 +164,9 @@ class _Pull(jm.AbstractEOS):
     def front_speed(self):
         return None
 
+    def nonnegative_energy(self):
+        return True
+
 
 def test_products_in_tension_are_a_named_breakdown():
     """Products pulling at -1e9 Pa (below -1e-3 rho0 D^2 = -1.2e8 Pa) stop the run at the first burnt
