@@ -220,9 +220,8 @@ def command(args) -> int:
             else:
                 try:
                     sol, compile_s, wall_s = _plain(scene, interp, timing, settings, progress)
-                except (
-                    jm.SimulationError
-                ) as e:  # the good frames are written before the breakdown is reported
+                except jm.SimulationError as e:
+                    # the good frames are written before the breakdown is reported
                     failed = local_solution(e.solution)
                     vtk = None
                     if args.vtk is not None and first:
