@@ -410,12 +410,7 @@ def command(args) -> int:
                 dict(
                     fitted=None,
                     error=str(e),
-                    scene=args.scene,
-                    interpolator=args.interpolator,
-                    method=args.method,
-                    dt=dt,
-                    pad=scene.pad,
-                    viscosity=None if viscosity is None else viscosity.coefficients(),
+                    **_settings(args, dt, scene, viscosity),
                     starts=_start_values(scene, names, starts),
                 )
             )
@@ -434,12 +429,7 @@ def command(args) -> int:
         loss=fit.loss,
         iterations=fit.iterations,
         wall_s=fit.wall_s,
-        scene=args.scene,
-        interpolator=args.interpolator,
-        method=args.method,
-        dt=dt,
-        pad=scene.pad,
-        viscosity=None if viscosity is None else viscosity.coefficients(),
+        **_settings(args, dt, scene, viscosity),
         start=start_values[fit.best_start],
         starts=start_values,
         best_start=fit.best_start,
@@ -476,6 +466,18 @@ def command(args) -> int:
     if fit.warning is not None:
         print(f"jaxmpm: warning: {fit.warning}", file=sys.stderr)
     return 0
+
+
+def _settings(args, dt, scene, viscosity) -> dict:
+    """The fit's settings, as ``--json`` reports them: scene, interpolator, method, dt, pad, viscosity."""
+    return dict(
+        scene=args.scene,
+        interpolator=args.interpolator,
+        method=args.method,
+        dt=dt,
+        pad=scene.pad,
+        viscosity=None if viscosity is None else viscosity.coefficients(),
+    )
 
 
 def _start_values(scene, names, starts) -> list[dict]:
