@@ -141,7 +141,7 @@ class AbstractScene(eqx.Module):
                 raise ValueError(
                     f"{type(self).__name__}.regions must return a tuple of Region, got {regions!r}"
                 )
-            for k, r in enumerate(regions[1:], start=1):  # the first region's is the scene's rho0
+            for k, r in enumerate(regions):
                 _check_particle_sizes(self.h, r.rho0, self.ppc, self.dim, region=k)
             self.layout()  # shapes with no particle, overlapping regions, regions off the grid
 

@@ -208,6 +208,12 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
             left_out = []
             for r in runs:
                 sol = r.solution
+                row = "artificial cells" if r.artificial_cells else "no artificial cells"
+                failed_at = int(sol.state.fail_step)
+                if failed_at >= 0 and k >= failed_at:  # never plot a state the run did not reach
+                    panels.setdefault((row, r.method), [])
+                    left_out.append(f"{r.method}, {row}, beta = {r.beta:g}: broke down at step {failed_at}")
+                    continue
                 X = np.asarray(sol.body.X[:, 0])
                 L = float(r.scene.length)
                 st = state_at(sol, k)
@@ -218,12 +224,6 @@ def figures(runs: list[Run], out: pathlib.Path, betas) -> list[pathlib.Path]:
                     y = (np.asarray(st.x[:, 0]) - np.asarray(ex["x"][:, 0])) / float(r.scene.h)
                 else:
                     y = (np.asarray(st.v[:, 0]) - np.asarray(ex["v"][:, 0])) / (r.beta * L)
-                row = "artificial cells" if r.artificial_cells else "no artificial cells"
-                failed_at = int(sol.state.fail_step)
-                if failed_at >= 0 and k >= failed_at:  # never plot a state the run did not reach
-                    panels.setdefault((row, r.method), [])
-                    left_out.append(f"{r.method}, {row}, beta = {r.beta:g}: broke down at step {failed_at}")
-                    continue
                 style = dict(color=colours[r.beta], marker="o", ms=3, lw=1)
                 panels.setdefault((row, r.method), []).append((f"beta = {r.beta:g}", X / L, y, style))
             path = OUTPUTS.check(out / f"{qty}_t{t:g}.png")
