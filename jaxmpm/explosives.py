@@ -515,8 +515,13 @@ def _as_points(x: object) -> Float[Array, "k dim"]:
     p = jnp.asarray(x, dtype=jnp.result_type(float))
     if p.ndim == 0:
         return p.reshape(1, 1)
-    if p.ndim == 1:
+    if p.ndim == 1 and p.size:
         return p[None, :]
+    if p.ndim != 2 or not 1 <= p.shape[1] <= 3:  # an empty vector gives no dimension
+        raise ValueError(
+            f"points must be an array (k, dim) with dim 1, 2 or 3 (for no point, an array of shape (0, dim) "
+            f"beside planes or lines), got shape {p.shape}"
+        )
     return p
 
 
@@ -615,8 +620,6 @@ class ProgrammedBurn(AbstractEOS):
         check_greater("J_CJ", self.J_CJ, 0.0)
         check_less("J_CJ", self.J_CJ, 1.0)
         check_finite("t_d", self.t_d)
-        if self.points.ndim != 2:
-            raise ValueError(f"points must be an array (k, dim), got shape {self.points.shape}")
         dim = self.points.shape[1]
         if self.planes is not None:
             if self.planes.ndim != 2 or self.planes.shape[1] != dim + 1:

@@ -5,6 +5,8 @@ wrong, with what is allowed, before anything is traced; tracers and batched valu
 tests that accept one still ask for the parameter's name.)
 """
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -105,6 +107,34 @@ STATIC = [
 )
 def test_a_static_fraction_is_one_number(scene, param, value, match):
     _one_line(lambda: getattr(jm, scene)(**{param: value}), match)
+
+
+SPLITS = [
+    ("Interface", "x0", 0.001, dict(), "left", r"0\.1 cells.*\[0\.25, 99\.75\) cells"),
+    ("ShockTube", "x0", 0.0001, dict(cells=100), "left", r"0\.01 cells.*\[0\.25, 99\.75\) cells"),
+    ("Interface", "x0", 0.9975, dict(), "right", r"99\.75 cells.*\[0\.25, 99\.75\) cells"),
+    ("GurneySlab", "split", 0.999, dict(), "right", r"199\.8 cells.*\[0\.25, 199\.75\) cells"),
+    ("GurneySlab", "split", 0.01, dict(cells=10, ppc=1, pad=4), "left", r"0\.1 cells.*\[0\.5, 9\.5\) cells"),
+]
+
+
+@pytest.mark.parametrize(
+    "scene, param, value, kw, side, where", SPLITS, ids=[f"{s}-{p}={v!r}" for s, p, v, *_ in SPLITS]
+)
+def test_a_split_leaving_a_side_without_particles_is_refused_by_name(scene, param, value, kw, side, where):
+    msg = _one_line(
+        lambda: getattr(jm, scene)(**{param: value}, **kw), f"^{param} = {value!r} leaves the {side}"
+    )
+    assert re.search(where, msg), msg
+
+
+@pytest.mark.parametrize("scene, param, value", [("Interface", "x0", 0.0025), ("Interface", "x0", 0.9974)])
+def test_a_split_one_particle_from_the_end_is_kept(scene, param, value):
+    # the first centre (0.25 cells) on the split belongs to the left side; 99.74 cells leaves the right
+    # side its last particle (99.75)
+    s = getattr(jm, scene)(**{param: value})
+    counts = jm.regions.layout((s.cells,), s.ppc, tuple(r.shape for r in s.regions()), s.pad).counts
+    assert min(counts) == 1 and sum(counts) == s.cells * s.ppc
 
 
 STRUCTURAL = [

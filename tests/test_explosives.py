@@ -323,6 +323,14 @@ def test_bad_inputs_name_the_parameter(build, name):
         build()
 
 
+@pytest.mark.parametrize("points", [[], [[]], np.zeros((1, 4))], ids=["empty", "empty-row", "4d"])
+def test_points_without_a_dimension_of_1_to_3_are_refused(points):
+    # an empty list gives no dimension: it is not one point of dimension 0
+    with pytest.raises(ValueError, match=r"^points must be an array \(k, dim\) with dim 1, 2 or 3 .*shape"):
+        _burn(points=points)
+    assert _burn(points=np.zeros((0, 1)), planes=[[1.0, 0.0]]).points.shape == (0, 1)
+
+
 def test_bad_burn_lists_the_allowed_values():
     with pytest.raises(ValueError, match="'time', 'volume', 'max'"):
         _burn(burn="fast")

@@ -15,6 +15,7 @@ from ..particles import Body, State
 from ..regions import Region
 from ._base import AbstractScene
 from .detonation import EXPLOSIVE_NAMES, PRODUCTS, _check_burn_width, explosive_eos
+from .shock_tube import check_split
 
 
 def gurney_sandwich(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""]) -> Float[Array, ""]:
@@ -241,6 +242,7 @@ class GurneySlab(AbstractGurney):
         check_positive("L", self.L)
         if not 0.0 < self.split < 1.0:
             raise ValueError(f"split must be a fraction of L in (0, 1), got {self.split!r}")
+        check_split("split", self.split, self.cells, self.ppc)
 
     @property
     def h(self) -> Float[Array, ""]:

@@ -11,7 +11,7 @@ from .._util import as_float, static_fraction
 from ..materials import IdealGas
 from ..regions import Region
 from ._base import AbstractScene
-from .shock_tube import split_tube
+from .shock_tube import check_split, split_tube
 
 
 class Interface(AbstractScene):
@@ -56,6 +56,7 @@ class Interface(AbstractScene):
         check_nonnegative("p", self.p)
         if not isinstance(self.x0, (int, float)) or not 0.0 < float(self.x0) < 1.0:
             raise ValueError(f"x0 must be a fraction of the length in (0, 1), got {self.x0!r}")
+        check_split("x0", self.x0, self.cells, self.ppc)
 
     @property
     def rho0(self) -> Float[Array, ""]:

@@ -15,6 +15,31 @@ from ..regions import Region
 from ._base import AbstractScene
 
 
+def check_split(name: str, fraction: float, cells: int, ppc: int) -> None:
+    """Check that a tube of ``cells`` cells split at ``fraction`` of its length leaves a particle on each
+    side (the centres lie at ``(i + 1/2) / ppc`` cells; one on the split belongs to the left side).
+
+    Args:
+        name: the parameter's name, for the message.
+        fraction: where the tube splits, a fraction of its length in ``(0, 1)``.
+        cells: the tube's cells.
+        ppc: particles per cell.
+
+    Raises:
+        ValueError: a side would hold no particle (naming ``name``, the split in cells and the range
+            that leaves both sides one).
+    """
+    cut = fraction * cells
+    first, last = 0.5 / ppc, (cells * ppc - 0.5) / ppc
+    if not first <= cut < last:
+        side = "left" if cut < first else "right"
+        raise ValueError(
+            f"{name} = {fraction!r} leaves the {side} side without a particle: it splits the {cells} cells "
+            f"at {cut:.6g} cells, and a particle on each side needs a split in [{first:.6g}, {last:.6g}) "
+            f"cells (the particle centres of ppc = {ppc}; move {name} or raise cells)"
+        )
+
+
 def split_tube(cells: int, x0: float) -> tuple[AbstractShape, AbstractShape]:
     """The two regions of a tube of ``cells`` cells split at the fraction ``x0`` of its length.
 
@@ -89,6 +114,7 @@ class ShockTube(AbstractScene):
         check_finite("u_r", self.u_r)
         if not isinstance(self.x0, (int, float)) or not 0.0 < float(self.x0) < 1.0:
             raise ValueError(f"x0 must be a fraction of the tube's length in (0, 1), got {self.x0!r}")
+        check_split("x0", self.x0, self.cells, self.ppc)
         args = self.states()
         if all(is_concrete(a) for a in args) and bool(vacuum_generated(*args)):
             raise ValueError(
