@@ -202,6 +202,17 @@ def test_the_stiff_shock_tube_is_measured_where_its_exact_solution_holds(monkeyp
     assert stability.shock_markdown(results).count("F<=0@1") >= 1
 
 
+def test_the_multid_large_run_gives_no_throughput_for_a_run_that_broke_down(monkeypatch):
+    simulate_timed = jm.simulate_timed
+    # a step far beyond the stable limit: every run breaks down at its first step
+    monkeypatch.setattr(jm, "simulate_timed", lambda *a, dt, **kw: simulate_timed(*a, dt=1.0, **kw))
+    rows = multid.large_2d(cells=4, steps=3)
+    assert [r["interpolator"] for r in rows] == ["spq", "cpdi", "mpq"]
+    for r in rows:
+        assert r["failure"].endswith("at step 1"), r
+        assert r["mparticle_steps_per_s"] is None and r["F_max_rel"] is None
+
+
 def test_the_multid_tables_give_no_number_for_a_run_that_broke_down():
     blast = dict(
         t=[0.0, 1e-4],
@@ -223,7 +234,7 @@ def test_the_multid_tables_give_no_number_for_a_run_that_broke_down():
                 steps=5,
                 compile_s=1.0,
                 run_s=0.1,
-                mparticle_steps_per_s=1.0,
+                mparticle_steps_per_s=None,
                 failure="F <= 0 at step 3",
                 F_max_rel=None,
             )
@@ -234,4 +245,4 @@ def test_the_multid_tables_give_no_number_for_a_run_that_broke_down():
     text = multid._markdown(result)
     assert "| cpdi | 14 | none | 0.5 | 0.7 | 5.7 |" in text
     assert "| mpq | 14 | step 15: F <= 0 (the particle's domain inverted) | - | - | - |" in text
-    assert "| broken down: F <= 0 at step 3 |" in text
+    assert "| mpq | 4 | 5 | 1.00 | 0.10 | - | broken down: F <= 0 at step 3 |" in text
