@@ -234,7 +234,7 @@ def check_keywords(
     allowed = [
         name
         for name, par in inspect.signature(takes).parameters.items()
-        if par.kind is inspect.Parameter.KEYWORD_ONLY
+        if par.kind is inspect.Parameter.KEYWORD_ONLY and not (refused and name in refused)
     ]
     for name in given:
         if refused is not None and name in refused:

@@ -111,8 +111,9 @@ _NO_RUN = "has no run"
 """What ``_Model.why`` says of values the scene refuses (``"... where GasSlab has no run: ..."``)."""
 
 _EDGE_SHRINK = 1e6
-"""How many times closer to its bound ``p_off`` than at its start a fitted value must have come (with
-the Gauss-Newton step pointing past the bound) for ``_at_edge`` to say the fit ran into the bound."""
+"""How many times closer to its bound ``p_off`` than its scale (the start's distance, or ``|p_off|``) a
+fitted value must be (with the Gauss-Newton step pointing past the bound) for ``_at_edge`` to say the
+fit ran into the bound."""
 
 
 def fittable(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
@@ -279,7 +280,8 @@ class Fit:
 
         The draw is Gaussian in the fit's variables ``theta = ln(p - p_off)`` (mean: the fitted
         values; covariance: ``covariance_theta``), so every member is admissible (``gamma > 1``,
-        ``P0 > p_atm``).
+        ``P0 > p_atm``): where ``P0`` and ``p_atm`` are both fitted, members with ``P0 <= p_atm`` are
+        drawn again (the Gaussian restricted to the scene's range; ``draw``).
 
         Args:
             members: how many.
@@ -299,6 +301,10 @@ class Fit:
         return draw(self.fitted, self.offsets, self.names, C, members, seed)
 
 
+_ORDERED = (("P0", "p_atm"),)
+"""Pairs ``(a, b)`` of constants a scene takes only with ``a > b`` (``GasSlab``: ``P0 > p_atm``)."""
+
+
 def draw(fitted: dict, offs: dict, names: Sequence[str], covariance_theta, members: int, seed) -> dict:
     """Draw ``members`` parameter sets from ``N(theta_fit, covariance_theta)`` in ``theta = ln(p - p_off)``.
 
@@ -311,14 +317,38 @@ def draw(fitted: dict, offs: dict, names: Sequence[str], covariance_theta, membe
         seed: the seed of numpy's generator, or a ``numpy.random.Generator``.
 
     Returns:
-        Name to an array ``(members,)`` of physical values.
+        Name to an array ``(members,)`` of physical values. Each value lies above its ``p_off``; where
+        both of an ordered pair are drawn (``P0`` and ``p_atm``: a scene has ``P0 > p_atm``), members
+        out of order are drawn again, so every member is one the scene takes.
+
+    Raises:
+        ValueError: fewer than one draw in a thousand is in order (the Gaussian lies almost wholly
+            outside the scene's range).
     """
     names = tuple(names)
     C = np.asarray(covariance_theta, dtype=float)
     mean = np.array([np.log(fitted[n] - offs[n]) for n in names])
     rng = np.random.default_rng(seed)
-    theta = rng.multivariate_normal(mean, C, size=members, method="eigh")
-    return {n: offs[n] + np.exp(theta[:, i]) for i, n in enumerate(names)}
+    pairs = [(names.index(a), names.index(b)) for a, b in _ORDERED if a in names and b in names]
+
+    def physical(theta):
+        return np.array([offs[n] for n in names]) + np.exp(theta)
+
+    values = physical(rng.multivariate_normal(mean, C, size=members, method="eigh"))
+    for _ in range(1000):
+        bad = np.zeros(members, dtype=bool)
+        for i, j in pairs:
+            bad |= ~(values[:, i] > values[:, j])
+        if not bad.any():
+            break
+        values[bad] = physical(rng.multivariate_normal(mean, C, size=int(bad.sum()), method="eigh"))
+    else:
+        a, b = names[pairs[0][0]], names[pairs[0][1]]
+        raise ValueError(
+            f"the fitted Gaussian lies almost wholly outside the scene's range: fewer than one draw in a "
+            f"thousand has {a} > {b}"
+        )
+    return {n: values[:, i] for i, n in enumerate(names)}
 
 
 def observable(scene: AbstractScene) -> str:
@@ -619,6 +649,7 @@ def calibrate(
             nothing is returned.
     """
     _check_parts(scene, interpolator)
+    check_keywords("calibrate", simulate_kwargs, simulate, refused=_TRAJECTORY_SETS)
     _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
@@ -723,6 +754,7 @@ def calibrate_each(
         CalibrationError: the start's run breaks down.
     """
     _check_parts(scene, interpolator)
+    check_keywords("calibrate_each", simulate_kwargs, simulate, refused=_TRAJECTORY_SETS)
     _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
@@ -913,6 +945,11 @@ def _check_data(scene, t_data, x_data, what="x_data"):
     if t_host[0] < 0 or np.any(np.diff(t_host) <= 0):
         raise ValueError("t_data must start at >= 0 and increase")
     if observable(scene) != "x_free":
+        if not np.any(np.asarray(x_data)):  # the loss divides by the largest observed speed
+            raise ValueError(
+                f"{what} must hold a nonzero plate speed (the loss is scaled by the largest one), got "
+                f"all zeros"
+            )
         return t_data, x_data
     x_max = float(np.max(np.asarray(x_data)))
     grid_end = float(scene.length) + scene.pad * float(scene.h)
@@ -1145,10 +1182,12 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     # live slots kept their own starts and data; the final point's residuals and Jacobian
     r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
     ok &= alive
-    state = np.where(ok, "iterations", "failed").astype(object)
+    final = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan)
+    with np.errstate(invalid="ignore"):  # NaN where a start failed
+        state = np.where(ok, np.where(final <= tol, "converged", "iterations"), "failed").astype(object)
     for b in np.flatnonzero(alive & ~ok):
         failed[int(b)] = f"at its final point: {model.why(model.physical(start_theta[b], theta[b]))[0]}"
-    history.append(np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan))
+    history.append(final)
     return dict(
         theta=theta,
         r=r,
@@ -1191,13 +1230,13 @@ def _finish(
         if b != best:
             values_b = {n: float(phys_all[b, i]) for i, n in enumerate(names)}
             failed[int(b)] = _blocked_message(model, run, int(b), values_b, final[b], lead="")
+    edge = _at_edge(model, theta[best], start_theta[best], r, J)
     blocked = None
-    if state[best] == "blocked":
+    if state[best] == "blocked" and edge is None:  # at the edge, the trials past it are refused values
         blocked = _blocked_message(model, run, best, fitted, final[best])
         if warn:
             raise CalibrationError(blocked)
     u = uncertainty(model.scene, names, fitted, r, J_theta=J, noise=noise, offs=model.offsets)
-    edge = _at_edge(model, theta[best], start_theta[best], r, J)
     if edge is not None:  # no minimum inside the range: the Gaussian about it describes nothing
         warning = edge
     else:
@@ -1266,11 +1305,12 @@ def _out_of_range(model) -> tuple[str, str]:
 def _at_edge(model, theta, start_theta, r, J) -> str | None:
     """Whether the fit ran into the bound of a fitted value, in words (``None``: it did not).
 
-    A fitted value ``p`` is at its bound ``p_off`` when ``p - p_off`` fell more than ``_EDGE_SHRINK``
-    times from the start's, and the Gauss-Newton step from there (``dp = (p - p_off) dtheta``, so a
-    ``theta`` step below -1 crosses the bound) would take it past the bound: the loss falls all the
-    way to the bound, and the fit has no minimum inside the range (``exp`` in the fit's variables
-    would reach the bound itself, which the scene refuses).
+    A fitted value ``p`` is at its bound ``p_off`` when ``p - p_off`` is more than ``_EDGE_SHRINK``
+    times smaller than its scale (the larger of the start's ``p - p_off`` and ``|p_off|``, so that a
+    start next to the bound counts as well), and the Gauss-Newton step from there (``dp = (p - p_off)
+    dtheta``, so a ``theta`` step below -1 crosses the bound) would take it past the bound: the loss
+    falls all the way to the bound, and the fit has no minimum inside the range (``exp`` in the fit's
+    variables would reach the bound itself, which the scene refuses).
 
     Args:
         model: the fit's ``_Model``.
@@ -1290,7 +1330,9 @@ def _at_edge(model, theta, start_theta, r, J) -> str | None:
         step = np.where(norms > 0, step / np.where(norms > 0, norms, 1.0), -np.inf)
     phys = model.physical(start_theta, theta)
     start = model.physical(start_theta, np.zeros_like(theta))
-    at = [i for i in range(len(model.names)) if theta[i] < -np.log(_EDGE_SHRINK) and step[i] < -1.0]
+    gap = np.asarray(phys, float) - model.off
+    scale = np.maximum(np.asarray(start, float) - model.off, np.abs(model.off))
+    at = [i for i in range(len(model.names)) if gap[i] < scale[i] / _EDGE_SHRINK and step[i] < -1.0]
     if not at:
         return None
     where = "; ".join(
@@ -1390,7 +1432,9 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
 
     Raises:
         ValueError: ``names`` empty or not a sequence of names, ``r`` or ``J_theta`` not finite or
-            of shapes other than ``(n,)`` and ``(n, len(names))``, or ``fitted`` lacking a name.
+            of shapes other than ``(n,)`` and ``(n, len(names))``, ``fitted`` lacking a name or
+            holding a value that is not finite or not above its bound, or ``noise`` not one number
+            > 0.
     """
     names = tuple(_names(names, "names"))
     if not names:
@@ -1407,9 +1451,15 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
     missing = [k for k in names if k not in fitted]
     if missing:
         raise ValueError(f"fitted must hold a value for every name; missing: {', '.join(missing)}")
+    if noise is not None:
+        check_scalar("noise", noise, " (one standard deviation, in the units of the data)")
+        check_positive("noise", noise)
     n, p = Jt.shape
     value = np.array([fitted[k] for k in names])
     D = value - np.array([offs[k] for k in names])  # d p / d theta
+    for k, v, d in zip(names, value, D):
+        if not (np.isfinite(v) and d > 0):
+            raise ValueError(f"fitted[{k!r}] must be finite and > {offs[k]:g} (its bound), got {float(v)!r}")
     if noise is not None:
         sigma = float(noise)
     elif n > p:
@@ -1671,6 +1721,7 @@ def information(
         CalibrationError: the run at the scene's constants breaks down.
     """
     _check_parts(scene, interpolator)
+    check_keywords("information", simulate_kwargs, simulate, refused=_TRAJECTORY_SETS)
     _check_concrete(scene)
     names = tuple(_names(fit))
     _check_names(scene, names)
@@ -1733,6 +1784,7 @@ def profile(
             line at or below a bound ``p_off``.
     """
     _check_parts(scene, interpolator)
+    check_keywords("profile", simulate_kwargs, simulate, refused=_TRAJECTORY_SETS)
     _check_concrete(scene)
     if not isinstance(fit, Fit):
         raise ValueError(f"fit must be the Fit that calibrate returned, got {brief(fit)}")
@@ -1746,7 +1798,13 @@ def profile(
     t_data, x_data = _check_data(scene, t_data, x_data)
     values = np.array([fit.fitted[n] for n in names]) * np.exp(alphas[:, None] * d[None, :])
     model = _Model(scene, interpolator, names, t_data, dt, simulate_kwargs)
-    _check_starts(names, model.off, values)
+    below = np.argwhere(~(values - model.off > 0))
+    if below.size:
+        i, j = (int(k) for k in below[0])
+        raise ValueError(
+            f"alphas[{i}] = {float(alphas[i])!r} takes {names[j]} to {values[i, j]:.6g}, at or below its "
+            f"bound {model.off[j]:g}: take smaller steps along the direction"
+        )
     start_theta = np.log(values - model.off)
     data = np.broadcast_to(np.asarray(x_data), (alphas.size, x_data.shape[0]))
     r, ok = model.residuals(np.zeros_like(start_theta), start_theta, data)

@@ -62,6 +62,16 @@ INTERP_STR = (
 )
 
 
+GURNEY = dict(cells=20, pad=60, explosive="gamma-law")
+
+
+def _uncertainty(f, sc, fitted=None, **kw):
+    """``uncertainty`` of a fit of gamma and P0 from three residuals (a well-posed Jacobian)."""
+    J = np.array([[1.0, 0.2], [0.3, 1.0], [0.5, 0.5]])
+    fitted = dict(gamma=1.4, P0=3e5) if fitted is None else fitted
+    return f(sc, ("gamma", "P0"), fitted, [0.1, -0.1, 0.05], J_theta=J, **kw)
+
+
 def _fit():
     return cal.Fit(
         fitted={"gamma": 1.4, "P0": 3e5},
@@ -200,6 +210,39 @@ def _fit():
             "direction must have a component that is not zero",
         ),
         ("fittable", lambda f, sc: f("gas-slab"), "scene must be a jaxmpm scene or scene class"),
+        *[
+            (
+                "uncertainty",
+                lambda f, sc, kw=kw: _uncertainty(f, sc, **kw),
+                match,
+            )
+            for kw, match in (
+                (dict(noise=0.0), r"noise must be > 0, got 0\.0"),
+                (dict(noise=-1.0), r"noise must be > 0, got -1\.0"),
+                (dict(noise=float("nan")), "noise must be finite"),
+                (dict(noise=[0.1, 0.2]), r"noise must be one number, got an array of shape \(2,\)"),
+            )
+        ],
+        (
+            "uncertainty",
+            lambda f, sc: _uncertainty(f, sc, dict(gamma=1.0, P0=3e5)),
+            r"fitted\['gamma'\] must be finite and > 1 \(its bound\), got 1\.0",
+        ),
+        (
+            "uncertainty",
+            lambda f, sc: _uncertainty(f, sc, dict(gamma=1.4, P0=np.inf)),
+            r"fitted\['P0'\] must be finite and > 100000 \(its bound\), got inf",
+        ),
+        (
+            "profile",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, _fit(), [0.1, -5.0], dt=DT),
+            r"alphas\[1\] = -5\.0 takes gamma to 0\.0697019, at or below its bound 1: take smaller steps",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(jm.GurneySlab(**GURNEY), jm.CPDI(), TS, np.zeros(TS.size), fit=("D",), dt=DT),
+            r"x_data must hold a nonzero plate speed \(the loss is scaled by the largest one\), got all",
+        ),
         (
             "uncertainty",
             lambda f, sc: f(sc, (), {}, [1.0], J_theta=np.zeros((1, 0))),
@@ -238,6 +281,23 @@ def test_a_fit_pulled_to_gamma_1_stays_inside_and_says_it_ran_into_the_edge():
     assert "check the data and the constants not fitted (P0, p_atm, rho0)" in fit.warning
     refused = [e for e in fit.rejected if e["broke"] and "why" in e]
     assert refused and "where GasSlab has no run: gamma must be > 1" in refused[0]["why"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("start", [3.0, 1.05, 1.000001])
+def test_a_fit_pulled_to_the_edge_says_so_from_any_start(start):
+    """The same data and model from starts far from the bound, near it and a millionth from it: each
+    fit ends inside the range with the edge's warning, not an error about runs that break down (no run
+    broke down: the trials at the bound are values the scene refuses) nor a warning about noise."""
+    kw = dict(p_atm=1.0, rho0=1.0, h=1 / 8, cells=8, pad=64)
+    ts, dt = np.linspace(0.0, 3.0, 16), 0.2 * (1 / 8) / np.sqrt(1.3 * 4.2)
+    x = np.asarray(cal.trajectory(jm.GasSlab(P0=4.2, gamma=1.3, **kw), jm.CPDI(), ts, dt=dt))
+    model = jm.GasSlab(P0=2.0, **kw)  # too little P0: the data want gamma below 1
+    with pytest.warns(cal.CalibrationWarning, match="the fit ran into the edge of the allowed range: gamma"):
+        fit = cal.calibrate(model, jm.CPDI(), ts, x, fit=("gamma",), starts=dict(gamma=start), dt=dt)
+    assert 1.0 < fit.fitted["gamma"] < 1.0 + 1e-6, fit.fitted
+    assert "breaks down" not in fit.warning and "noise" not in fit.warning, fit.warning
+    assert not any(e.get("failure") for e in fit.rejected)  # refused values, no run that broke down
 
 
 @pytest.mark.slow
@@ -323,3 +383,63 @@ def test_a_plan_refuses_a_window_before_its_first_time():
         raw(cal.Information.fisher)(info, t_end="a")
     with pytest.raises(ValueError, match=r"noise must be one number, got an array of shape \(2,\)"):
         raw(cal.Information.fisher)(info, noise=[1.0, 2.0])
+
+
+# -- what a fit reports -----------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_lbfgs_below_tol_is_converged_without_a_warning():
+    """Noise-free data: L-BFGS stops with a loss far below ``tol`` (by its rule of no further
+    improvement), which is a converged fit, not one that ran out of iterations."""
+    kw = dict(p_atm=1.0, rho0=1.0, h=1 / 8, cells=8, pad=64)
+    ts, dt = np.linspace(0.0, 3.0, 16), 0.2 * (1 / 8) / np.sqrt(1.3 * 4.2)
+    scene = jm.GasSlab(P0=4.2, gamma=1.3, **kw)
+    x = np.asarray(cal.trajectory(scene, jm.CPDI(), ts, dt=dt))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", cal.CalibrationWarning)
+        fit = cal.calibrate(
+            scene, jm.CPDI(), ts, x, starts=dict(gamma=1.6, P0=3.0), dt=dt, method="lbfgs", iterations=40
+        )
+    assert fit.loss <= 1e-14 and fit.converged and fit.warning is None, (fit.loss, fit.warning)
+    assert fit.fitted["gamma"] == pytest.approx(1.3, rel=1e-6)
+
+
+@pytest.mark.parametrize("fn", ["calibrate", "calibrate_each", "information", "profile"])
+def test_an_unknown_keyword_names_the_function_called_and_lists_only_what_it_takes(fn):
+    data = dict(calibrate=(X,), calibrate_each=(X[None],), information=(), profile=(X, _fit(), [0.0]))[fn]
+
+    def call(**kw):
+        return getattr(cal, fn)(jm.GasSlab(**SLAB), jm.CPDI(), TS, *data, dt=DT, **kw)
+
+    with pytest.raises(TypeError, match=rf"^{fn}\(\) got an unexpected keyword argument 'stepz'; it takes "):
+        call(stepz=3)
+    try:
+        call(stepz=3)
+    except TypeError as e:
+        takes = set(str(e).split("it takes ")[1].split(", "))
+    assert "transfer" in takes and not {"steps", "saveat", "throw", "t_end", "cfl", "max_steps"} & takes
+    with pytest.raises(ValueError, match=rf"^{fn}\(\) does not take steps: "):
+        call(steps=3)
+
+
+def test_draws_of_P0_and_p_atm_fitted_together_keep_P0_above_p_atm():
+    """Both fitted: their offsets are 0, and a Gaussian wide enough puts some draws at P0 <= p_atm,
+    which the scene refuses; those are drawn again, and the draw is still seeded."""
+    fitted, offs = dict(P0=1.2e5, p_atm=1.0e5), dict(P0=0.0, p_atm=0.0)
+    C = np.diag([0.1**2, 0.1**2])  # ln P0 and ln p_atm each +-10%: about 10% of plain draws out of order
+    rng = np.random.default_rng(0)
+    plain = fitted["P0"] * np.exp(0.1 * rng.standard_normal(4000)) <= fitted["p_atm"] * np.exp(
+        0.1 * rng.standard_normal(4000)
+    )
+    assert plain.mean() > 0.05  # the Gaussian itself does put members out of order
+    d = cal.draw(fitted, offs, ("P0", "p_atm"), C, 4000, seed=1)
+    assert np.all(d["P0"] > d["p_atm"]) and d["P0"].shape == (4000,)
+    again = cal.draw(fitted, offs, ("P0", "p_atm"), C, 4000, seed=1)
+    assert np.array_equal(d["P0"], again["P0"]) and np.array_equal(d["p_atm"], again["p_atm"])
+    # one constant of the pair alone: nothing to order, the plain Gaussian draw
+    one = cal.draw(dict(P0=1.2e5), dict(P0=1.0e5), ("P0",), np.eye(1) * 0.01, 5, seed=1)
+    expect = 1.0e5 + np.exp(np.log(2e4) + 0.1 * np.random.default_rng(1).standard_normal(5))
+    np.testing.assert_allclose(one["P0"], expect, rtol=1e-12)
+    with pytest.raises(ValueError, match="fewer than one draw in a thousand has P0 > p_atm"):
+        cal.draw(dict(P0=1.0e5, p_atm=1.2e6), offs, ("P0", "p_atm"), np.diag([1e-4, 1e-4]), 10, seed=0)
