@@ -250,3 +250,65 @@ def test_ctrl_c_while_jaxmpm_is_imported_is_one_line_and_130():
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 130 and proc.stderr == "jaxmpm: interrupted\n" and proc.stdout == ""
+
+
+# -- --grad, the report's keys, and options that would do nothing ------------------------------------
+
+
+def test_grad_past_t_valid_is_refused_before_the_run(capsys):
+    argv = ["run", "riemann", "cells=32", "h=0.03125", "--interpolator", "cpdi", "--dt", "2e-3"]
+    line = failed(capsys, [*argv, "--steps", "400", "--grad", "P0"], 2)
+    assert line == (
+        "jaxmpm: error: --grad: the run ends at t = 0.8, past t_valid = 0.183937, where the scene's exact "
+        "solution stops holding, so F_rms_rel is not measured there: give fewer --steps or a smaller --dt"
+    )
+
+
+@pytest.mark.slow
+def test_grad_where_nothing_is_measured_yet_is_null_not_a_number(capsys):
+    # the front has not moved far enough in: F_rms_rel is null, and so is its derivative
+    argv = [*EARLY_DETONATION, "--dt", "1e-9", "--steps", "10", "--viscosity", "--grad", "D"]
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["errors"]["F_rms_rel"] is None and out["grad"] == {"D": None} and out["grad_s"] is None
+    assert main(argv) == 0
+    assert "d(F_rms_rel)/d D: none (F_rms_rel is not measured at this time)" in capsys.readouterr().out
+
+
+def test_grad_names_the_option_of_a_name_given_twice(capsys):
+    assert failed(capsys, [*SMALL, "--grad", "beta,beta"], 2) == "jaxmpm: error: --grad: beta is given twice"
+
+
+def test_a_shear_coefficient_in_1d_is_refused(capsys):
+    line = failed(capsys, [*SMALL, "--viscosity", "2,0.2,0.5"], 2)
+    assert line.startswith("jaxmpm: error: --viscosity 2,0.2,0.5: the third number, SHEAR, is a shear ")
+    assert "vanishes in 1D, and gas-expansion is 1D here: give QUAD,LIN" in line
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "timing", [["--dt", "1e-4", "--steps", "0"], ["--t-end", "0.5", "--max-steps", "5000"]]
+)
+def test_the_euler_errors_keys_are_null_where_not_measured(capsys, timing):
+    # at t = 0 and past t_valid (0.5 > the shock tube's) the exact Euler solution is not measured
+    argv = ["run", "shock-tube", "cells=32", "--interpolator", "cpdi", "--viscosity", *timing, "--json"]
+    assert main(argv) == 0
+    errors = json.loads(capsys.readouterr().out)["errors"]
+    assert {k: errors[k] for k in ("rho_L1", "u_L1", "p_L1", "e_L1")} == dict.fromkeys(
+        ("rho_L1", "u_L1", "p_L1", "e_L1")
+    )
+
+
+@pytest.mark.slow
+def test_a_breakdown_report_keeps_devices_and_resume_keeps_viscosity(capsys, tmp_path):
+    argv = ["run", "gas-expansion", "cells=2", "--interpolator", "mpq", "--dt", "1e-2", "--steps", "2"]
+    assert main([*argv, "--devices", "1", "--json"]) == 3
+    broken = json.loads(capsys.readouterr().out)
+    assert broken["status"] != 0 and broken["devices"] == 1
+    out = str(tmp_path / "v.npz")
+    assert main([*SMALL, "--viscosity", "1,0.1", "--out", out, "--json", "--no-progress"]) == 0
+    ran = json.loads(capsys.readouterr().out)
+    assert main(["resume", out, "--json"]) == 0
+    resumed = json.loads(capsys.readouterr().out)
+    assert resumed["viscosity"] == ran["viscosity"] == [1.0, 0.1]
+    assert list(resumed)[:9] == list(ran)[:9]  # the same settings, in the same order

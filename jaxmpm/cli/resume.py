@@ -89,8 +89,10 @@ def _settings(meta: dict, file) -> dict:
         ordering=meta["ordering"],
         dt=meta["dt"],
         steps=meta["steps"],
-        out=str(file),
     )
+    if meta.get("viscosity") is not None:  # in run's order: after the settings, before out
+        run["viscosity"] = meta["viscosity"]
+    run["out"] = str(file)
     if meta.get("devices") is not None:
         run["devices"] = meta["devices"]
     return run

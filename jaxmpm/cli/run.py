@@ -133,11 +133,16 @@ def command(args) -> int:
             raise UsageError(f"--cfl-limit must be a number or 'none', got {args.cfl_limit!r}") from None
     names = None
     if args.grad is not None:
-        names = _assign.comma_list(args.grad)
+        names = _assign.comma_list(args.grad, "--grad")
         _check_grad(scene, names)
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
     viscosity = _assign.viscosity(args.viscosity)
+    if viscosity is not None and viscosity.c_shear is not None and scene.dim == 1:
+        raise UsageError(
+            f"--viscosity {args.viscosity}: the third number, SHEAR, is a shear viscosity, which vanishes "
+            f"in 1D, and {args.scene} is 1D here: give QUAD,LIN"
+        )
     settings = dict(
         transfer=transfer,
         artificial_cells=args.artificial_cells,
@@ -168,6 +173,14 @@ def command(args) -> int:
             if dest in args.given:
                 raise UsageError(f"{option} goes with --t-end (a run to an end time), not --dt and --steps")
         timing = dict(dt=args.dt, steps=args.steps)
+    if names is not None and args.dt is not None and args.steps is not None:
+        t_run = args.dt * args.steps
+        if not jm.metrics.exact_holds(scene, t_run):
+            raise UsageError(
+                f"--grad: the run ends at t = {t_run:.6g}, past t_valid = {float(scene.t_valid):.6g}, where "
+                "the scene's exact solution stops holding, so F_rms_rel is not measured there: give "
+                "fewer --steps or a smaller --dt"
+            )
     if args.overwrite and args.out is None and args.vtk is None:
         raise UsageError("--overwrite goes with --out FILE or --vtk DIR (what it would replace)")
     if "chunk" in args.given and args.out is None:
@@ -213,7 +226,7 @@ def command(args) -> int:
                     )
                 except jm.SimulationError as e:
                     failed = local_solution(e.solution)
-                    _breakdown_json(args, scene, failed, viscosity)
+                    _breakdown_json(args, scene, failed, viscosity, devices=settings["devices"])
                     raise Breakdown(failed, dt=args.dt, saved_in=pathlib.Path(args.out)) from None
                 except OSError as e:  # e.g. the disk filled up while saving: a checkpoint before it is intact
                     raise CannotWrite(f"--out {args.out}", e) from None
@@ -226,13 +239,15 @@ def command(args) -> int:
                     vtk = None
                     if args.vtk is not None and first:
                         vtk = _write_vtk(args, scene, interp, settings, failed, vtk_made)
-                    _breakdown_json(args, scene, failed, viscosity, vtk)
+                    _breakdown_json(args, scene, failed, viscosity, vtk, settings["devices"])
                     raise Breakdown(failed, dt=args.dt) from None
         except ValueError as e:
             raise as_option(e) from None
         sol = local_solution(sol)
         grad = grad_s = None
-        if names is not None:
+        if names is not None and not _measured(scene, sol):  # no error, so no derivative of it
+            grad = dict.fromkeys(names)
+        elif names is not None:
             t0 = time.perf_counter()
             try:
                 g = jm.gradient(
@@ -242,9 +257,7 @@ def command(args) -> int:
                 raise UsageError(f"--grad: {e}") from None
             grad = {n: float(g[n]) for n in names}
             grad_s = time.perf_counter() - t0
-        run = _settings(args, sol, viscosity)
-        if settings["devices"] is not None:
-            run["devices"] = settings["devices"]
+        run = _settings(args, sol, viscosity, settings["devices"])
         if args.vtk is not None and first:
             run["vtk"] = _write_vtk(args, scene, interp, settings, sol, vtk_made)
         return report(run, scene, sol, compile_s, wall_s, grad=grad, grad_s=grad_s, as_json=args.json)
@@ -319,14 +332,30 @@ def _advance(model, state, dt, limit, chunk: int):
     return advance(model, jm.setup(model), state, dt, chunk, jm.SaveAt(), None, limit)[0]
 
 
-def _breakdown_json(args, scene, sol, viscosity, vtk: dict | None = None) -> None:
+def _breakdown_json(args, scene, sol, viscosity, vtk: dict | None = None, devices=None) -> None:
     """With ``--json``, the report of a run that broke down (its last good state, ``status`` and
     ``failure``, and ``vtk``: the frames written up to it) on stdout, before the one line on stderr."""
     if args.json:
-        run = _settings(args, sol, viscosity)
+        run = _settings(args, sol, viscosity, devices)
         if vtk is not None:
             run["vtk"] = vtk
         report(run, scene, sol, None, None, as_json=True)
+
+
+def _where(scene, sol):
+    """Where a run's errors against the exact solution are measured: ``None`` (every particle), or
+    for a scene of regions with fronts (the detonation) the particles away from them, which before
+    the front has moved far enough in are none."""
+    if scene.regions is not None and float(sol.state.t) > 0:
+        return jm.metrics.smooth_mask(scene, sol.body, sol.state.t)
+    return None
+
+
+def _measured(scene, sol) -> bool:
+    """Whether ``F_rms_rel`` is measured at the run's end: the exact solution holds there, and some
+    particle is where the errors are measured."""
+    where = _where(scene, sol)
+    return jm.metrics.exact_holds(scene, sol.state.t) and (where is None or bool(np.any(np.asarray(where))))
 
 
 def _check_grad(scene, names: list[str]) -> None:
@@ -344,7 +373,7 @@ def _check_grad(scene, names: list[str]) -> None:
         raise UsageError(f"--grad: {e}") from None
 
 
-def _settings(args, sol, viscosity) -> dict:
+def _settings(args, sol, viscosity, devices=None) -> dict:
     """The run's settings as ``report`` prints them first (and ``--json`` keeps them)."""
     run = dict(
         scene=args.scene,
@@ -361,6 +390,8 @@ def _settings(args, sol, viscosity) -> dict:
         run["viscosity"] = viscosity.coefficients()
     if args.out is not None:
         run["out"] = str(args.out)
+    if devices is not None:
+        run["devices"] = devices
     return run
 
 
@@ -460,8 +491,9 @@ def report(
         sol: its solution.
         compile_s: compile time (s), or ``None`` for a run that broke down.
         wall_s: run time (s), or ``None`` for a run that broke down.
-        grad: ``d(F_rms_rel)/d(name)`` by name, or ``None``.
-        grad_s: the time of the gradient (s), with ``grad``.
+        grad: ``d(F_rms_rel)/d(name)`` by name (each ``None`` where ``F_rms_rel`` is not measured at
+            the run's end), or ``None``.
+        grad_s: the time of the gradient (s), with ``grad`` (``None`` where none was computed).
         as_json: one JSON object instead of the table.
 
     Returns:
@@ -469,9 +501,7 @@ def report(
     """
     st = sol.state
     # A scene of regions with fronts (the detonation) is measured where its solution is smooth.
-    where = None
-    if scene.regions is not None and float(st.t) > 0:
-        where = jm.metrics.smooth_mask(scene, sol.body, st.t)
+    where = _where(scene, sol)
     # Before the front has moved far enough in, no particle is away from it: nothing to measure yet.
     unmeasured = where is not None and not bool(np.any(np.asarray(where)))
     # After a breakdown this is the last good state's report, and it says so (status, failure).
@@ -524,6 +554,9 @@ def report(
             if "lambda" in st.internal:  # a programmed burn's burn fraction
                 particles["lambda"] = floats(st.internal["lambda"])
     euler = jm.metrics.euler_errors(scene, st, sol.body, allow_broken=True) if float(st.t) > 0 else None
+    if euler is None and hasattr(scene, "solution") and st.e is not None and scene.dim == 1:
+        # an exact Euler solution that is not measured now (at t = 0, or past t_valid): the keys stay
+        euler = {f"{k}_L1": None for k in jm.metrics.EULER_FIELDS}
     if euler is not None:
         err = {**err, **euler}
     if as_json:
@@ -572,7 +605,9 @@ def report(
         print(
             f"ring: velocity={ring['velocity']:.6g}  radius={ring['radius']:.6g}  gurney={ring['gurney']:.6g}"
         )
-    if grad is not None:
+    if grad is not None and grad_s is None:
+        print(f"d(F_rms_rel)/d {', '.join(grad)}: none (F_rms_rel is not measured at this time)")
+    elif grad is not None:
         print(
             "d(F_rms_rel)/d: "
             + "  ".join(f"{k}={v:.10g}" for k, v in grad.items())
