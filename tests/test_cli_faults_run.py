@@ -312,3 +312,50 @@ def test_a_breakdown_report_keeps_devices_and_resume_keeps_viscosity(capsys, tmp
     resumed = json.loads(capsys.readouterr().out)
     assert resumed["viscosity"] == ran["viscosity"] == [1.0, 0.1]
     assert list(resumed)[:9] == list(ran)[:9]  # the same settings, in the same order
+
+
+@pytest.mark.parametrize(
+    "late, message",
+    [
+        ("t-end=3", "unknown parameter 't-end' for scene gas-expansion; allowed: "),
+        ("beta", "scene parameters are name=value, got 'beta'"),
+    ],
+)
+def test_scene_parameters_after_the_options_are_read_as_those_before_them(capsys, late, message):
+    before = failed(capsys, ["run", "gas-expansion", late, *SMALL[2:]], 2)
+    after = failed(capsys, [*SMALL, late], 2)
+    assert before == after and message in after
+    if late == "t-end=3":
+        assert after.endswith("(t-end is an option of the command: --t-end 3)")
+
+
+def test_options_are_named_as_typed_in_their_messages(capsys, tmp_path):
+    assert failed(capsys, [*SMALL, "--artificial-cells", "1000000"], 2) == (
+        "jaxmpm: error: pad must be > --artificial-cells so the artificial layer stays on the grid; got "
+        "pad=10, --artificial-cells=1000000"
+    )
+    data = tmp_path / "d.csv"
+    data.write_text("t,x_free\n0,1\n0.001,1.01\n")
+    line = failed(capsys, ["calibrate", "gas-slab", "--data", str(data), "--devices", "3"], 2)
+    assert line.startswith("jaxmpm: error: --devices must be from 1 to ")
+    assert line.endswith(" or 'all', got 3")
+    ensemble = ["ensemble", "gas-slab", "--vary", "gamma=1.3:1.5", "--members", "2"]
+    line = failed(capsys, [*ensemble, "--max-steps", "99999999999"], 2)
+    assert line == (
+        "jaxmpm: error: --max-steps must be <= 2147483647 (the bound of a step counter), got 99999999999"
+    )
+
+
+def test_a_fit_whose_draws_reach_a_bound_is_refused_naming_from_fit(capsys, tmp_path):
+    fit = dict(
+        scene="gas-slab",
+        fitted=dict(gamma=1.4, P0=3e5),
+        offsets=dict(gamma=1.0, P0=1e5),
+        covariance_theta=dict(gamma=dict(gamma=1e4, P0=0.0), P0=dict(gamma=0.0, P0=0.01)),
+    )
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(fit))
+    argv = ["ensemble", "gas-slab", "--from-fit", str(path), "--members", "2", "--dt", "1e-5", "--steps", "3"]
+    line = failed(capsys, argv, 2)
+    assert line.startswith(f"jaxmpm: error: --from-fit: {path}: the data hardly determine gamma ")
+    assert line.endswith("members drawn from this fit would reach gamma = 1, its bound, in float64")

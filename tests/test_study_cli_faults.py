@@ -155,6 +155,18 @@ def test_a_disk_that_fills_while_a_study_writes_leaves_whole_files(tmp_path, mon
     assert list((tmp_path / "new").iterdir()) == []
 
 
+@pytest.mark.slow
+def test_a_full_disk_under_jaxmpm_study_is_one_line_naming_the_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(talk, "METHODS", {"MPQ": talk.METHODS["MPQ"]})
+    monkeypatch.setattr(jaxmpm._files, "open", FullDisk(len("talk\n")), raising=False)  # the mark fits
+    out = tmp_path / "talk"
+    assert main(["study", "talk", "--small", "--out", str(out)]) == 74
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and re.fullmatch(
+        rf"jaxmpm: error: cannot write {re.escape(str(out))}/[\w.]+: No space left on device", lines[0]
+    ), lines
+
+
 def test_the_stability_map_gives_no_error_for_a_run_that_broke_down():
     """SPQ expanding to F = 2 finishes at CFL 0.1 and breaks down at 1.5, as does the strong
     compression: the error of a run that broke down is None (not that of its last good state), and its

@@ -13,7 +13,6 @@ import numpy as np
 import jaxmpm as jm
 from jaxmpm._json import dumps
 
-_ASSIGNMENT = re.compile(r"^[A-Za-z_]\w*=")  # a scene parameter, name=value
 _NUMBER = r"(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # a number without its sign
 
 
@@ -50,7 +49,24 @@ def as_option(error: Exception) -> UsageError:
     name, sep, rest = text.partition(" ")
     if sep and name in OPTIONS and rest.startswith(("must ", "is ")):
         text = f"{OPTIONS[name]} {rest}"
-    return UsageError(text)
+    return UsageError(in_options(text))
+
+
+_SPELLED = re.compile(r"(?<![\w.-])(" + "|".join(n for n in OPTIONS if "_" in n) + r")\b")
+
+
+def in_options(text: str) -> str:
+    """``text`` with the library's argument names that only an option sets spelled as the options
+    (``raise max_steps`` as ``raise --max-steps``); the names without an underscore (``dt``,
+    ``steps``) are words of the text too, and stay.
+
+    Args:
+        text: a message of the library.
+
+    Returns:
+        The message in the command line's terms.
+    """
+    return _SPELLED.sub(lambda m: OPTIONS[m.group(1)], text)
 
 
 class CannotWrite(Exception):
@@ -110,10 +126,13 @@ class Parser(argparse.ArgumentParser):
             UsageError: bad input.
         """
         args, extra = self.parse_known_args(argv)
-        late = [a for a in extra if _ASSIGNMENT.match(a)]
-        if late and hasattr(args, "params"):
-            args.params = list(args.params) + late
-            extra = [a for a in extra if a not in late]
+        if hasattr(args, "params"):
+            # every item after the options that is not an option is a scene parameter (read, and
+            # refused if need be, as those before them are); "--" ends the options
+            late = [a for a in extra if a != "--" and not a.startswith("-")]
+            if late or "--" in extra:
+                args.params = list(args.params) + late
+                extra = [a for a in extra if a.startswith("-") and a != "--"]
         if extra:
             self.error(f"unrecognized arguments: {' '.join(extra)}")
         if not hasattr(args, "given"):
@@ -420,7 +439,7 @@ def devices_option(args) -> int | None:
         The count of devices, or ``None``.
 
     Raises:
-        UsageError: neither an integer >= 1 nor ``all``.
+        UsageError: neither an integer from 1 to the devices there nor ``all``.
     """
     import jax
 
@@ -435,6 +454,11 @@ def devices_option(args) -> int | None:
         k = 0
     if k < 1:
         raise UsageError(f"--devices must be an integer >= 1 or 'all', got {value!r}")
+    if k > len(jax.devices()):
+        raise UsageError(
+            f"--devices must be from 1 to {len(jax.devices())} (the devices here, jax.devices()) or "
+            f"'all', got {k}"
+        )
     return k
 
 

@@ -140,6 +140,11 @@ def command(args) -> int:
                 check_positive("--t-end", args.t_end)
             if args.max_steps is not None:
                 check_int("--max-steps", args.max_steps, 1)
+                if args.max_steps > _MOST_STEPS:
+                    raise ValueError(
+                        f"--max-steps must be <= {_MOST_STEPS} (the bound of a step counter), got "
+                        f"{args.max_steps}"
+                    )
         except ValueError as e:
             raise as_option(e) from None
         if args.t_end is not None and args.max_steps is not None:
@@ -151,7 +156,8 @@ def command(args) -> int:
                     values = {**scene.parameter_values(), **dict(corner)}
                     speeds.append(float(type(scene)(**values).wave_speed))
                 except ValueError as e:
-                    raise UsageError(f"--vary: {e}") from None
+                    source = " and ".join(o for o, on in (("--vary", ranges), ("--from-fit", fit)) if on)
+                    raise UsageError(f"{source}: {e}") from None
             c_min, c_max = min(speeds), max(speeds)
             if not (math.isfinite(c_max) and c_min > 0):
                 raise UsageError(
@@ -372,4 +378,11 @@ def read_fit(path: str, scene, allowed) -> dict:
         k: tuple(offs[k] + (fitted[k] - offs[k]) * math.exp(z * sd[i]) for z in (-6.0, 6.0))
         for i, k in enumerate(names)
     }
+    for k, (lo, _) in bounds.items():
+        if not lo > offs[k]:  # (fitted - offset) exp(-6 sd) is lost beside the offset in float64
+            raise UsageError(
+                f"--from-fit: {path}: the data hardly determine {k} (standard deviation of log({k} - "
+                f"offset) {sd[names.index(k)]:.3g}): members drawn from this fit would reach {k} = "
+                f"{offs[k]:g}, its bound, in float64"
+            )
     return dict(names=names, fitted=fitted, offsets=offs, covariance_theta=C, bounds=bounds)

@@ -7,7 +7,7 @@ import jax
 
 from .._files import write_whole
 from ..studies._output import Files
-from ._common import UsageError, writable_folder
+from ._common import CannotWrite, UsageError, writable_folder
 
 STUDIES = {
     "talk": "talk",
@@ -78,8 +78,8 @@ def command(args) -> int:
         UsageError: ``--out`` cannot be written, or holds files that this study does not write
             (unless ``--overwrite``); or the study draws figures and matplotlib is missing. All are
             found before the study starts.
-        OSError: a file of the study cannot be written (a full disk): each is written whole, so the
-            folder keeps, for each file, the previous run's version or the new one.
+        CannotWrite: a file of the study cannot be written (a full disk): each is written whole, so
+            the folder keeps, for each file, the previous run's version or the new one.
     """
     if args.name not in WITHOUT_FIGURES:
         try:
@@ -92,7 +92,10 @@ def command(args) -> int:
     study = importlib.import_module(f"jaxmpm.studies.{STUDIES[args.name]}")
     _claim(args.out, args.name, study.OUTPUTS, args.overwrite)
     options = dict(release=jax.clear_caches) if args.name in RELEASING else {}
-    study.main(out=args.out, small=args.small, **options)
+    try:
+        study.main(out=args.out, small=args.small, **options)
+    except OSError as e:  # a full disk: the files written before it are whole
+        raise CannotWrite(str(e.filename) if e.filename else f"--out {args.out}", e) from None
     return 0
 
 
