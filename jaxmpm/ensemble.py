@@ -83,26 +83,31 @@ class Ensemble:
 
     def member_scene(self, scene: AbstractScene, i: int | np.integer | jax.Array) -> AbstractScene:
         """Member ``i``'s scene: ``scene`` (the one given to ``ensemble``) with the member's values of
-        the varied parameters, for measuring the member against its own exact solution.
+        the varied scene parameters, for measuring the member against its own exact solution.
+
+        The varied run settings (``RUN_NAMES``: ``dt``, ``t_end``, ``cfl``) are not scene parameters
+        and are left out; member ``i``'s own are ``params[name][i]`` (its solution's ``ts`` and state
+        ``t`` are already those of its own run).
 
         Args:
             scene: the ensemble's scene.
             i: the member, as for ``member``.
 
         Returns:
-            The scene with ``params[name][i]`` for each varied ``name``.
+            The scene with ``params[name][i]`` for each varied scene parameter ``name``.
 
         Raises:
-            ValueError: ``scene`` is not a jaxmpm scene or lacks a varied parameter; ``i`` as for
+            ValueError: ``scene`` is not a jaxmpm scene or lacks a varied scene parameter; ``i`` as for
                 ``member``.
         """
         k = self._index(i)
         if not isinstance(scene, AbstractScene):
             raise ValueError(f"scene must be the ensemble's jaxmpm scene, got {brief(scene)}")
-        missing = [name for name in self.params if not hasattr(scene, name)]
+        varied = {name: v for name, v in self.params.items() if name not in RUN_NAMES}
+        missing = [name for name in varied if not hasattr(scene, name)]
         if missing:
             raise ValueError(f"scene must be the ensemble's, and {scene.name} has no {', '.join(missing)}")
-        return dataclasses.replace(scene, **{name: float(v[k]) for name, v in self.params.items()})
+        return dataclasses.replace(scene, **{name: float(v[k]) for name, v in varied.items()})
 
     def member(self, i: int | np.integer | jax.Array) -> Solution:
         """One member's solution.
@@ -207,25 +212,29 @@ def _check_vary_names(scene: AbstractScene, vary: Mapping) -> None:
 
 
 def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
-    """Each varied value within what its parameter allows: ``dt``, ``t_end`` and ``cfl`` > 0, and a
-    scene parameter's smallest and largest value each accepted by the scene's own checks (with the
-    other parameters at the base scene's values). With two or more scene parameters varied, every
-    member's scene, all its varied values together, is also checked: a check can tie them (``P0 >
-    p_atm``), and a member that the scene refuses is named (about 1 ms a member)."""
+    """Each member's values within what its parameters allow: ``dt``, ``t_end`` and ``cfl`` > 0, and
+    each member's scene accepted by the scene's own checks (the parameters not varied at the base
+    scene's values). With one scene parameter varied, its smallest and largest values are checked;
+    with two or more, every distinct member's values together (about 1 ms a member), since a check
+    can tie them (``P0 > p_atm``): an extreme of one is checked with its own member's other values,
+    never with the base scene's. A refused value is named with its member's index."""
     base = scene.parameter_values()
     for name, a in arrays.items():
-        if name in RUN_NAMES:
-            if not np.all(a > 0):
-                i = int(np.flatnonzero(~(a > 0))[0])
-                raise ValueError(f"vary[{name!r}] must be > 0, got {a[i]:g} (member {i})")
-            continue
-        for value in (float(a.min()), float(a.max())):
-            try:
-                type(scene)(**{**base, name: value})
-            except ValueError as e:
-                refused = f"vary[{name!r}] holds {value:g}, which {type(scene).__name__} refuses: {e}"
-                raise ValueError(refused) from None
+        if name in RUN_NAMES and not np.all(a > 0):
+            i = int(np.flatnonzero(~(a > 0))[0])
+            raise ValueError(f"vary[{name!r}] must be > 0, got {a[i]:g} (member {i})")
     joint = [name for name in arrays if name not in RUN_NAMES]
+    if len(joint) == 1:
+        (name,) = joint
+        a = arrays[name]
+        for i in (int(np.argmin(a)), int(np.argmax(a))):
+            try:
+                type(scene)(**{**base, name: float(a[i])})
+            except ValueError as e:
+                refused = (
+                    f"vary[{name!r}] holds {a[i]:g}, which {type(scene).__name__} refuses: {e} (member {i})"
+                )
+                raise ValueError(refused) from None
     if len(joint) < 2:
         return
     rows = np.stack([np.asarray(arrays[name], dtype=float) for name in joint], axis=1)
@@ -268,8 +277,9 @@ def ensemble(
         ValueError: bad ``vary`` (not a dict, unknown, structural or static names, a name the run
             does not use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``; values that are not
             real numbers, arrays of different lengths, values that are not finite or that the
-            parameter does not allow), bad run arguments, or more members than the device's memory
-            holds (estimated before anything is allocated).
+            parameter does not allow, a member whose values together the scene refuses, named by
+            its index), bad run arguments, or more members than the device's memory holds
+            (estimated before anything is allocated).
         KeyboardInterrupt: Ctrl-C while the members ran (``long_run.computed``: at once under the command
             line): nothing is returned.
     """

@@ -352,19 +352,29 @@ def _check_body(body) -> None:
         )
 
 
-def _refuse_broken(state: State, allow_broken, what: str) -> None:  # allow_broken: checked here
-    """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status)."""
+_MEASURE_ANYWAY = "Pass allow_broken=True to measure that state anyway."
+
+
+def _refuse_broken(state: State, allow_broken, what: str, then: str = _MEASURE_ANYWAY) -> None:
+    """Raise where ``state`` is that of a run that broke down (a concrete, nonzero status), the
+    message ending with ``then`` (what to do instead). ``allow_broken``: checked here.
+
+    Under ``jax.jvp`` and ``jax.jacfwd`` the integer fields (status, steps) are concrete and the time
+    is traced: the message names what is concrete."""
     check_bool("allow_broken", allow_broken)
     status = state.status
-    if allow_broken or isinstance(status, jax.core.Tracer) or np.ndim(status) != 0 or int(status) == 0:
+    if allow_broken or not is_concrete(status) or np.ndim(status) != 0 or int(status) == 0:
         return
     from . import status as st_bits
 
+    failed = f" at step {int(state.fail_step)}" if is_concrete(state.fail_step) else ""
+    last = ""
+    if is_concrete(state.step):
+        at = f" (t = {float(state.t):.6g})" if is_concrete(state.t) else ""
+        last = f", at step {int(state.step)}{at}"
     raise ValueError(
-        f"{what} of a run that broke down at step {int(state.fail_step)} "
-        f"({' and '.join(st_bits.describe(int(status)))}): its state is the last good one, at step "
-        f"{int(state.step)} (t = {float(state.t):.6g}), not the run's end. Pass allow_broken=True to "
-        f"measure that state anyway."
+        f"{what} of a run that broke down{failed} ({' and '.join(st_bits.describe(int(status)))}): "
+        f"its state is the last good one{last}, not the run's end. {then}"
     )
 
 

@@ -21,18 +21,21 @@ relative to the nodes. ``dt`` is taken at a fixed number of steps, so the final 
 from __future__ import annotations
 
 import dataclasses
+import typing
 from collections.abc import Callable, Iterable, Sequence
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
-from ._checks import brief, check_positive
+from ._checks import brief, check_bool, check_positive, is_concrete
 from ._simulate import Solution, simulate
 from ._step import check_scene
 from ._util import as_float
 from .interpolators import AbstractInterpolator
-from .metrics import available_errors, errors
+from .metrics import _refuse_broken, available_errors, errors
+from .particles import State
 from .scenes import SCENES, AbstractScene
 
 
@@ -127,38 +130,30 @@ def check_names(scene: AbstractScene, names) -> None:
         raise ValueError(f"name at least one parameter; allowed: {', '.join(allowed)}")
 
 
-def objective(
+def _check_once(names) -> None:
+    """Each name once: a dict of values (and of derivatives) holds one entry per name."""
+    names_list = list(names)
+    twice = [n for i, n in enumerate(names_list) if n in names_list[:i]]
+    if twice:
+        raise ValueError(f"names must name each parameter once, got {names!r}: {twice[0]!r} twice")
+
+
+@typing.no_type_check  # checks every argument itself, raising ValueError, as objective promises
+def _measured(
     scene: AbstractScene,
     interpolator: AbstractInterpolator,
     names: Sequence[str],
     *,
     dt,
     steps: int,
-    error: str | Callable[[AbstractScene, Solution], jax.Array] = "F_rms_rel",
+    error: str | Callable[[AbstractScene, Solution], jax.Array],
     **simulate_kwargs,
-) -> Callable[[dict[str, jax.Array]], jax.Array]:
-    """A function ``{name: value} -> scalar`` of the named parameters, for ``jax.grad`` and friends.
-
-    Args:
-        scene: the scene; parameters not named keep its values.
-        interpolator: the interpolator.
-        names: parameters to expose (scene float fields and ``dt``).
-        dt: the time step (used unless ``"dt"`` is named).
-        steps: number of steps.
-        error: a key of ``jaxmpm.errors`` or a function ``(scene, solution) -> scalar``.
-        **simulate_kwargs: passed to ``simulate`` (transfer, artificial_cells, checkpoint, ...).
-
-    Returns:
-        The function of the named parameters.
-
-    Raises:
-        ValueError: before anything is traced: ``scene`` is not a jaxmpm scene object (a class or
-            a registry name is told how to make one), ``names`` is not a sequence of continuous
-            parameter names (an unknown or structural name), or ``error`` is neither a name of
-            ``available_errors(scene)`` nor a function.
-    """
+) -> Callable[[dict[str, jax.Array]], tuple[jax.Array, State]]:
+    """Check what ``objective`` checks before tracing; return ``{name: value} -> (error, state)``, the
+    error measured whatever the run's status (that of its last good state where it broke down)."""
     check_scene(scene)
     check_names(scene, names)
+    _check_once(names)
     if "dt" in names:  # a traced dt passes simulate's checks: check the value it starts from here
         if np.ndim(dt) != 0:
             raise ValueError(f"dt must be one number (the time step), got shape {np.shape(dt)}")
@@ -172,16 +167,95 @@ def objective(
             f"or a function (scene, solution) -> scalar, got {brief(error)}"
         )
 
-    def f(values: dict[str, jax.Array]) -> jax.Array:
+    def measured(values: dict[str, jax.Array]) -> tuple[jax.Array, State]:
         where = lambda s: [getattr(s, n) for n in scene_names]
         sc = eqx.tree_at(where, scene, [values[n] for n in scene_names])
         step = values["dt"] if "dt" in values else dt
         sol = simulate(sc, interpolator, dt=step, steps=steps, **simulate_kwargs)
         if callable(error):
-            return error(sc, sol)
-        return errors(sc, sol.state, sol.body)[error]
+            return error(sc, sol), sol.state
+        return errors(sc, sol.state, sol.body, allow_broken=True)[error], sol.state
+
+    return measured
+
+
+def objective(
+    scene: AbstractScene,
+    interpolator: AbstractInterpolator,
+    names: Sequence[str],
+    *,
+    dt,
+    steps: int,
+    error: str | Callable[[AbstractScene, Solution], jax.Array] = "F_rms_rel",
+    with_status: bool = False,
+    **simulate_kwargs,
+) -> Callable[[dict[str, jax.Array]], jax.Array | tuple[jax.Array, jax.Array]]:
+    """A function ``{name: value} -> scalar`` of the named parameters, for ``jax.grad`` and friends.
+
+    A run that broke down (with ``throw=False``; by default ``simulate`` raises) never gives an error
+    that passes for a finished run's:
+
+    - by default, where its status is concrete (a plain call, ``jax.grad``, ``jax.jacfwd``) the
+      function raises ``ValueError``; where it is traced (under ``jax.vmap`` or ``jax.jit``) the value
+      is NaN, and so are its derivatives, for that member only;
+    - with ``with_status=True`` the function returns ``(error, status)``: ``status`` is the run's
+      status bitmask (0: it finished; ``jaxmpm.status.describe`` says what broke), and a run that
+      broke down has the error of its last good state, finite, whose derivatives are that state's.
+      Take derivatives with ``jax.grad(f, has_aux=True)`` (or ``jax.jacfwd(f, has_aux=True)``) and
+      keep the members whose status is 0.
+
+    Args:
+        scene: the scene; parameters not named keep its values.
+        interpolator: the interpolator.
+        names: parameters to expose (scene float fields and ``dt``), each once.
+        dt: the time step (used unless ``"dt"`` is named).
+        steps: number of steps.
+        error: a key of ``jaxmpm.errors`` or a function ``(scene, solution) -> scalar``.
+        with_status: return ``(error, status)`` instead of the error alone.
+        **simulate_kwargs: passed to ``simulate`` (transfer, artificial_cells, checkpoint, throw, ...).
+
+    Returns:
+        The function of the named parameters: ``values -> error``, or with ``with_status``
+        ``values -> (error, status)``.
+
+    Raises:
+        ValueError: before anything is traced: ``scene`` is not a jaxmpm scene object (a class or
+            a registry name is told how to make one), ``names`` is not a sequence of continuous
+            parameter names (an unknown or structural name) or names one twice, ``error`` is neither
+            a name of ``available_errors(scene)`` nor a function, or ``with_status`` is not a bool.
+            The function raises it for a run that broke down, as above.
+    """
+    measured = _measured(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
+    check_bool("with_status", with_status)
+    throws = simulate_kwargs.get("throw", True)  # (simulate checks that it is a bool)
+    if with_status:
+
+        def with_its_status(values: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array]:
+            value, state = measured(values)
+            return value, state.status
+
+        return with_its_status
+
+    def f(values: dict[str, jax.Array]) -> jax.Array:
+        value, state = measured(values)
+        if is_concrete(state.status):
+            _refuse_broken(
+                state, False, "objective() measures a finished run, and this state is", _WITH_STATUS
+            )
+            return value
+        if throws:  # simulate has raised where the run broke down
+            return value
+        # A member whose run broke down gets NaN, value and derivatives; a healthy one its value plus
+        # zeros. The NaN enters through the inputs themselves: through the error alone, a derivative
+        # that is exactly zero (an exact initial state) would drop it.
+        value = jnp.asarray(value)
+        poison = jnp.where(state.status == 0, 0.0, jnp.nan).astype(value.dtype)
+        return value + sum(poison * jnp.sum(v).astype(value.dtype) for v in jax.tree.leaves(values))
 
     return f
+
+
+_WITH_STATUS = "Pass with_status=True to get the error of that state beside its status."
 
 
 def gradient(
@@ -196,6 +270,10 @@ def gradient(
     **simulate_kwargs,
 ) -> dict[str, jax.Array]:
     """The derivative of a run's error with respect to each named parameter.
+
+    A run that broke down (with ``throw=False``; by default ``simulate`` raises) is refused, in
+    either mode: its derivative would be that of its last good state, not of the run asked for
+    (``objective(..., with_status=True)`` gives that one beside the status).
 
     Args:
         scene: as for ``objective``.
@@ -213,11 +291,21 @@ def gradient(
 
     Raises:
         ValueError: an unknown mode, or what ``objective`` refuses (a scene that is not a jaxmpm
-            scene object, bad ``names``, an unknown ``error``), before anything is traced.
+            scene object, bad ``names``, a name given twice, an unknown ``error``), before anything is
+            traced; after the run, a run that broke down (``throw=False``).
     """
     if mode not in ("reverse", "forward"):
         raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")
-    f = objective(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
+    measured = _measured(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
     values = {n: as_float(dt if n == "dt" else getattr(scene, n)) for n in names}
-    d = jax.grad(f) if mode == "reverse" else jax.jacfwd(f)
-    return d(values)
+    d = jax.grad if mode == "reverse" else jax.jacfwd
+    derivatives, state = d(measured, has_aux=True)(values)
+    # outside the transformation, the run's status, steps and time are concrete
+    _refuse_broken(
+        state,
+        False,
+        "gradient() differentiates a finished run, and this state is",
+        "A smaller dt or fewer steps run to the end; jm.sensitivity.objective(..., with_status=True) "
+        "gives the error of the last good state and its status, for jax.grad(..., has_aux=True).",
+    )
+    return derivatives
