@@ -359,3 +359,23 @@ def test_a_fit_whose_draws_reach_a_bound_is_refused_naming_from_fit(capsys, tmp_
     line = failed(capsys, argv, 2)
     assert line.startswith(f"jaxmpm: error: --from-fit: {path}: the data hardly determine gamma ")
     assert line.endswith("members drawn from this fit would reach gamma = 1, its bound, in float64")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (["bogus=1", "--dt", "1e-5"], "unknown parameter 'bogus' for scene gas-expansion"),
+        (["--dt", "-1"], "--dt must be > 0, got -1.0"),
+    ],
+)
+def test_bad_input_is_refused_before_joining_other_processes(bad, message):
+    """Process 1 of 2 started alone, with bad input: refused at once, not after waiting minutes for a
+    coordinator that never comes (and then aborting in the native code)."""
+    argv = ["run", "gas-expansion", "--interpolator", "mpq", "--steps", "2", *bad]
+    argv += ["--coordinator", "127.0.0.1:1", "--processes", "2", "--process-id", "1"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "jaxmpm.cli", *argv], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert message in proc.stderr

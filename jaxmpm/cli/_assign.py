@@ -79,6 +79,29 @@ def scene(name: str, items: Sequence[str], options: Mapping[str, bool] | None = 
         UsageError: an unknown scene or parameter, a value of the wrong type, or a value the scene
             rejects.
     """
+    kwargs = scene_arguments(name, items, options)
+    try:
+        return jm.SCENES[name](**kwargs)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+
+
+def scene_arguments(name: str, items: Sequence[str], options: Mapping[str, bool] | None = None) -> dict:
+    """The keyword arguments of ``scene`` (the items read as their defaults' types), without making the
+    scene: this touches no JAX device, so a command that joins other processes first
+    (``--distributed``) refuses a misspelt or mistyped parameter before it waits on them.
+
+    Args:
+        name: as for ``scene``.
+        items: as for ``scene``.
+        options: as for ``scene``.
+
+    Returns:
+        The scene's keyword arguments.
+
+    Raises:
+        UsageError: an unknown scene or parameter, or a value of the wrong type.
+    """
     if name not in jm.SCENES:
         raise UsageError(f"unknown scene {name!r}; allowed: {', '.join(sorted(jm.SCENES))}")
     cls = jm.SCENES[name]
@@ -98,10 +121,7 @@ def scene(name: str, items: Sequence[str], options: Mapping[str, bool] | None = 
         if key in kwargs:  # the same parameter under another of its names
             raise UsageError(f"{key} is given twice: {spelled[key]!r} and {given + '=' + raw!r}")
         kwargs[key], spelled[key] = _typed(given, raw, defaults[key]), f"{given}={raw}"
-    try:
-        return cls(**kwargs)
-    except ValueError as e:
-        raise UsageError(str(e)) from None
+    return kwargs
 
 
 def _typed(key: str, raw: str, default):

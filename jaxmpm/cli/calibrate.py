@@ -310,6 +310,7 @@ def command(args) -> int:
             "calibrate fits a free-surface trajectory (gas-slab) or a plate's velocity (gurney-slab): "
             f"the scene must be one of {', '.join(SCENES)}, got {args.scene}"
         )
+    _assign.scene_arguments(args.scene, args.params, options=flags(args))  # before joining others
     first = start_processes(args)
     scene = _assign.scene(args.scene, args.params, options=flags(args))
     column = jm.calibrate.observable(scene)

@@ -12,6 +12,7 @@ import numpy as np
 
 import jaxmpm as jm
 from jaxmpm import _memory
+from jaxmpm._checks import check_int, check_positive
 from jaxmpm._simulate import advance, failure_message, finish_to_end, prepare
 from jaxmpm._step import shard_particles
 from jaxmpm.long_run import _check_out, wait
@@ -122,6 +123,10 @@ def command(args) -> int:
         UsageError: bad input.
         Breakdown: the run broke down (after writing the frames of ``--vtk`` up to it).
     """
+    # What can be checked without a device is checked before joining other processes (--distributed),
+    # which waits until they all start: a misspelt parameter or option is said at once.
+    _assign.scene_arguments(args.scene, args.params, options=flags(args))
+    _check_timing_options(args)
     first = start_processes(args)
     scene = _assign.scene(args.scene, args.params, options=flags(args))
     if args.cfl_limit.lower() == "none":
@@ -356,6 +361,21 @@ def _measured(scene, sol) -> bool:
     particle is where the errors are measured."""
     where = _where(scene, sol)
     return jm.metrics.exact_holds(scene, sol.state.t) and (where is None or bool(np.any(np.asarray(where))))
+
+
+def _check_timing_options(args) -> None:
+    """The step's options as numbers, before anything touches a device: ``--dt`` and ``--t-end``
+    finite and > 0, ``--steps`` >= 0, ``--max-steps`` >= 1 (in the library's words, naming the option;
+    each is checked again where it is used)."""
+    try:
+        for value, option in ((args.dt, "--dt"), (args.t_end, "--t-end")):
+            if value is not None:
+                check_positive(option, value)
+        for value, option, least in ((args.steps, "--steps", 0), (args.max_steps, "--max-steps", 1)):
+            if value is not None:
+                check_int(option, value, least)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def _check_grad(scene, names: list[str]) -> None:
