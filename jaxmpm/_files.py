@@ -51,7 +51,8 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
 
     The temporary file has a name of its own (made new: no existing file is written over). A write
     or rename that fails (a full disk, a folder at ``path``) removes it and raises, leaving what
-    ``path`` held; an ``OSError`` names ``path`` (its ``filename``).
+    ``path`` held; an ``OSError`` with an error number names ``path`` and no other file (its
+    ``filename``, and no ``filename2``): ``[Errno 28] No space left on device: 'run.npz'``.
 
     Args:
         path: the file to write.
@@ -67,7 +68,7 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
                 os.fsync(f.fileno())
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        e.filename, e.filename2 = str(path), None  # the file the caller asked for, not the temporary one
+        _name(e, path)
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -76,8 +77,23 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
         os.replace(tmp, path)  # fails where path is a folder
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        e.filename, e.filename2 = str(path), None
+        _name(e, path)
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _name(e: OSError, path: pathlib.Path) -> None:
+    """Make ``e`` name ``path``, the file the caller asked for, instead of the temporary file (and, for
+    a rename, the pair of them). An ``OSError`` without an error number (``OSError("message")``) is
+    left as it is: its text is its message, which a file name would replace with ``[Errno None]``.
+
+    Args:
+        e: the error of a write or rename.
+        path: the file being written.
+    """
+    if e.errno is None:
+        return
+    e.filename = str(path)
+    del e.filename2  # none: a filename2 of None would be printed as "... -> None"

@@ -1381,6 +1381,44 @@ def _constitutive(model: Model, setup: Setup, state: State, F_new, dt, F_old_all
     return _assemble(sig, groups, n), e, internal, tension
 
 
+@eqx.filter_jit
+def material_stress(model, F, e, internal):
+    """The stress a step of ``model`` without viscosity leaves at deformation ``F``, energy ``e`` and
+    internal variables ``internal`` (each region by its own material, as ``_constitutive`` computes
+    it: the two change together), and for each particle the size of the terms it sums; ``long_run``
+    checks a saved stress against it.
+
+    Returns:
+        ``(sigma, size)``: ``(n, dim, dim)`` and ``(n,)``. ``size`` is the largest magnitude of the
+        material's parameters for a material of ``F`` alone, and ``|a| + |b e|`` (plus the
+        deviatoric stress of an ``ElasticPlastic``) for an equation of state ``p = a + b e``.
+    """
+    prepared = setup(model)
+    n, dim = F.shape[0], F.shape[-1]
+    groups = _groups(model, prepared)
+    stress, size = [], []
+    for g in groups:
+        F_g, material = _take(F, g.index), g.material
+        if isinstance(material, AbstractEOS):
+            z = _subset(internal, _internal_keys(material, dim, F.dtype), g.index)
+            e_g = _take(e, g.index)
+            a, b = jax.vmap(material.pressure_terms)(g.rho0 / det(F_g), z)
+            s_g = _eos_stress(a + b * e_g, dim, F.dtype)
+            size_g = jnp.abs(a) + jnp.abs(b * e_g)
+            if isinstance(material, ElasticPlastic):
+                deviatoric = jax.vmap(functools.partial(material.stress_of, dim=dim))(z)
+                s_g = s_g + deviatoric
+                size_g = size_g + jnp.max(jnp.abs(deviatoric), axis=(1, 2))
+        else:
+            s_g = jax.vmap(material.stress)(F_g)
+            leaves = [jnp.max(jnp.abs(p)) for p in jax.tree.leaves(material) if eqx.is_inexact_array(p)]
+            largest = jnp.max(jnp.stack(leaves)).astype(F.dtype) if leaves else jnp.zeros((), F.dtype)
+            size_g = jnp.full(F_g.shape[:1], largest)
+        stress.append(s_g)
+        size.append(size_g)
+    return _assemble(stress, groups, n), _assemble(size, groups, n)
+
+
 def fold_massless(
     f: Float[Array, "n_nodes dim"], has_mass: Bool[Array, " n_nodes"], axes: tuple[int, ...] | None = None
 ) -> Float[Array, "n_nodes dim"]:

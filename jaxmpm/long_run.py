@@ -38,9 +38,9 @@ Safety:
 - ``load`` and ``resume`` check a file before using it: an empty, truncated or foreign file, a
   metadata that is not JSON or lacks keys, an unknown scene, interpolator or transfer, parameters
   the scene rejects, state arrays missing or of the wrong shape or dtype, and arrays that do not
-  match what the metadata names (``body.X`` against the reference positions of the named scene)
-  each raise ``ValueError`` with one line naming the file and what is wrong. A missing file is a
-  ``FileNotFoundError``.
+  match what the metadata names, as far as the arrays tell without running the run again (``load``
+  lists the checks and the settings they cannot see) each raise ``ValueError`` with one line naming
+  the file and what is wrong. A missing file is a ``FileNotFoundError``.
 - Ctrl-C (``KeyboardInterrupt``) stops a run within a moment (the host polls the running chunk
   instead of blocking on it), discards the chunk in flight, saves the last finished chunk to
   ``out`` (atomically, as every save) and raises ``Interrupted``, a ``KeyboardInterrupt`` with
@@ -73,7 +73,7 @@ from . import status as st_bits
 from ._checks import any_traced, check_bool, check_int, check_keywords
 from ._files import write_whole
 from ._simulate import SaveAt, SimulationError, Solution, advance, failure_message, prepare, save_fields
-from ._step import initial_state, place_particles, setup, shard_particles
+from ._step import initial_state, material_stress, place_particles, setup, shard_particles
 from ._util import host
 from .interpolators import INTERPOLATORS, AbstractInterpolator
 from .particles import State
@@ -833,9 +833,21 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
     The checks: the file is a NumPy ``.npz`` archive that can be read whole; its ``meta`` is JSON
     with the keys ``META_KEYS``, of this ``FORMAT`` and at most ``FORMAT_VERSION``; the scene,
     interpolator and transfer it names exist and accept its parameters; every state (and history)
-    array the run needs is there with the shape and dtype the run gives it; and the arrays are those
-    of the run the metadata describes (``body.X`` and ``body.boundary`` equal those of the named
-    scene, ``state.step`` the saved ``step``, at most the run's ``steps``; a state of status 0 finite).
+    array the run needs is there with the shape and dtype the run gives it (which checks the
+    particle count, the dimension, and the parts of the state a setting carries: APIC's ``C``,
+    MPQ's ``corners``, an energy and internal variables); and the arrays are those of the run the
+    metadata describes, up to round-off: ``body.X`` and ``body.boundary`` equal those of the named
+    scene; ``state.step`` is the saved ``step``, at most the run's ``steps``, and ``state.t`` is
+    ``step * dt``; a state of status 0 is finite with ``det F > 0``; ``state.sigma`` is the stress
+    the named materials give at the saved ``F`` (and ``e`` and internal variables), which checks the
+    parameters that set the stress (a gas's ``P0``, ``gamma`` and ``p_atm``, a solid's moduli, an
+    equation of state's constants and density ``rho0``); and a history's times are one save every
+    ``saveat.every`` steps of ``dt``, its first frame the initial state of the named scene (its
+    velocity, stress, energy, ...). Settings that leave no trace in the saved arrays are not checked:
+    the transfer between FLIP and PIC, ``artificial_cells``, ``ordering``, ``cfl_limit``, ``chunk``,
+    ``checkpoint_every``, the interpolator's options, and scene parameters that act only through the
+    motion (``rho0`` of a material of ``F`` alone, walls, loads); nor is the stress of a run with an
+    artificial ``viscosity`` (it holds the viscous stress of the last step's rate, which is not saved).
 
     Args:
         path: the saved run.
@@ -1150,6 +1162,8 @@ def _load(path: pathlib.Path, on_devices: bool = True):
                 f"{path}: particle {p} has det F = {J[p]:.6g} <= 0, yet its status is 0 (healthy); the file "
                 "was edited or is damaged"
             )
+    if model.viscosity is None:  # (a viscous stress depends on the last step's rate, which is not saved)
+        _check_stress(path, model, fields, described)
     history = ts = None
     held = sorted(k for k in arrays if k.startswith("history."))
     if saveat.every is None:
@@ -1170,6 +1184,7 @@ def _load(path: pathlib.Path, on_devices: bool = True):
             template = templates[f]
             a = _check_array(path, f"history.{f}", arrays, (n_saved, *template.shape), template.dtype)
             history[f] = list(a)
+        _check_history(path, meta, saveat, float(dt_arr), np.asarray(ts), history, templates, described)
     rec = _Recorder(
         {k: v for k, v in meta.items() if k not in ("step", "complete", "status", "failure", "saved_at")},
         body,
@@ -1177,6 +1192,89 @@ def _load(path: pathlib.Path, on_devices: bool = True):
         ts,
     )
     return rec.solution(state), meta, (model, dt_arr, saveat, state, rec)
+
+
+_MISMATCH = "the checkpoint's arrays do not match its metadata"
+"""How the refusal of arrays made by another run than the one the metadata describes begins."""
+_ROUND_OFF = 4096
+"""The round-off allowed between a saved value and the same value computed again, in ulps of the
+size of the terms it sums (a compiled run and a check compute it in different programs)."""
+
+
+def _check_stress(path: pathlib.Path, model, fields: dict, described: str) -> None:
+    """Refuse a saved stress that is not the stress the metadata's materials give at the saved ``F``
+    (and ``e`` and internal variables), beyond round-off: arrays of a run with other material
+    parameters, another scene or another viscosity.
+
+    The round-off allowed is ``_ROUND_OFF`` ulps of the size of the stress's terms
+    (``_step.material_stress``), times ``det F``'s condition (the product of the norms of ``F``'s rows
+    over ``|det F|``, at least 1), by which the rounding of ``det F`` grows.
+    """
+    sigma = fields["sigma"]
+    expected, size = material_stress(model, jnp.asarray(fields["F"]), fields["e"], fields["internal"])
+    expected, size = np.asarray(expected, dtype=np.float64), np.asarray(size, dtype=np.float64)
+    saved = np.asarray(sigma, dtype=np.float64)
+    F = np.asarray(fields["F"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        condition = np.prod(np.linalg.norm(F, axis=2), axis=1) / np.abs(np.linalg.det(F))
+        allowed = _ROUND_OFF * np.finfo(sigma.dtype).eps * np.maximum(condition, 1.0)
+        allowed = allowed * (np.max(np.abs(expected), axis=(1, 2)) + size)
+        off = np.abs(saved - expected)
+        close = np.max(off, axis=(1, 2)) <= allowed  # (false where either is NaN)
+    unbounded = ~np.isfinite(condition)  # det F = 0 or F not finite (a broken state): no bound
+    neither = ~np.isfinite(saved).all(axis=(1, 2)) & ~np.isfinite(expected).all(axis=(1, 2))
+    bad = ~(close | unbounded | neither)
+    if not bad.any():
+        return
+    p = int(np.argmax(bad))
+    worst = np.where(np.isnan(off[p]), np.inf, off[p])
+    i, j = np.unravel_index(int(np.argmax(worst)), worst.shape)
+    held = (
+        ["F"]
+        + (["e"] if fields["e"] is not None else [])
+        + (["internal variables"] if fields["internal"] else [])
+    )
+    of = held[0] if len(held) == 1 else f"{', '.join(held[:-1])} and {held[-1]}"
+    raise ValueError(
+        f"{path}: {_MISMATCH}: state.sigma[{p}, {i}, {j}] is {float(saved[p, i, j])!r}, but the material "
+        f"of {described} gives {float(expected[p, i, j])!r} at the saved {of}; the meta names another "
+        "scene, other parameters or another viscosity than the arrays hold"
+    )
+
+
+def _check_history(
+    path: pathlib.Path, meta: dict, saveat, dt: float, ts: np.ndarray, history: dict, initial, described
+) -> None:
+    """Refuse a history whose times are not the saves' (one every ``saveat.every`` steps of ``dt``),
+    or whose first frame is not the initial state of the run the metadata describes (``initial``:
+    its saved fields), beyond round-off."""
+    every = saveat.every
+    due = np.arange(ts.shape[0], dtype=np.float64) * every * dt
+    wrong = ~(np.abs(ts - due) <= 16 * np.finfo(np.float64).eps * np.abs(due))
+    if wrong.any():
+        k = int(np.argmax(wrong))
+        raise ValueError(
+            f"{path}: {_MISMATCH}: history.ts[{k}] is {float(ts[k])!r}, but save {k} of one every {every} "
+            f"steps of dt = {meta['dt']!r} is at t = {float(due[k])!r}"
+        )
+    for name, fresh in initial.items():
+        first, fresh = np.asarray(history[name][0]), host(fresh)
+        if first.dtype.kind != "f":
+            differs = first != fresh
+        else:
+            finite = np.abs(fresh[np.isfinite(fresh)])
+            tol = _ROUND_OFF * np.finfo(first.dtype).eps
+            atol = tol * (float(np.max(finite)) if finite.size else 0.0)
+            differs = ~np.isclose(first, fresh, rtol=tol, atol=atol, equal_nan=True)
+        if differs.any():
+            at = np.unravel_index(int(np.argmax(differs)), differs.shape)
+            where = ", ".join(str(int(k)) for k in (0, *at))
+            raise ValueError(
+                f"{path}: {_MISMATCH}: history.{name}[{where}] (t = 0) is {float(first[at])!r}, but the "
+                f"initial state of {described} has {float(fresh[at])!r} (the first frame of a history is "
+                "the run's initial state); the meta names another scene or other parameters than the "
+                "arrays hold"
+            )
 
 
 @typing.no_type_check  # validates every argument itself, raising ValueError (see resume_timed)

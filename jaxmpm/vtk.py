@@ -336,10 +336,15 @@ def write_series(
     Saved times past ``t_end`` in a run to an end time repeat the final state and are left out. The
     final state is the last frame, added when it falls between saves. A file already in ``out_dir``
     under one of the names written is refused unless ``overwrite``, and replaced with it; files of
-    other names are left as they are. Every file is written under a temporary name, and the files are
-    renamed into place once all are written: a write that fails (a full disk, Ctrl-C) removes what
-    it wrote and leaves ``out_dir`` as it was (a folder it made is removed again). The
-    model, the solution and the files already there are checked before anything is written.
+    other names (the frames of an earlier, longer series among them) are left as they are. Every file
+    is written under a temporary name, and the files are renamed into place once all are written, each
+    file they replace first moved aside under a temporary name (``.NAME.<pid>-<hex>.old``) and deleted
+    once the whole series is in place. A write or rename that fails (a full disk, Ctrl-C) removes what
+    it wrote, moves the files it replaced back and leaves ``out_dir`` as it was (a folder it made is
+    removed again); only a process killed outright between the renames, or a file system that fails
+    to move a file back, leaves files under temporary names (the new ones ``.NAME.<pid>-<hex>.stage``,
+    the replaced ones ``.old``). The model, the solution and the files already there are checked
+    before anything is written.
 
     A run that broke down is refused unless ``allow_broken``. With it, the frames up to the last good
     state are written (saved times after the breakdown repeat that state and are left out; the last
@@ -442,7 +447,8 @@ def write_series(
     out.mkdir(parents=True, exist_ok=True)
     tag = f"{os.getpid()}-{secrets.token_hex(4)}"
     staged: list[tuple[pathlib.Path, pathlib.Path]] = []  # (written under a temporary name, its name)
-    placed: list[pathlib.Path] = []
+    ours: dict[pathlib.Path, tuple[int, int]] = {}  # a name to place: the identity of the file written for it
+    aside: dict[pathlib.Path, pathlib.Path] = {}  # a file replaced: where it waits until the series is in
 
     def stage(name: str) -> pathlib.Path:
         staged.append((out / f".{name}.{tag}.stage", out / name))
@@ -465,19 +471,46 @@ def write_series(
             lines += ["</Collection>", "</VTKFile>", ""]
             _write(stage(f"{kind}.pvd"), "\n".join(lines).encode())
         for tmp, path in staged:  # every file is written: now into place, the .pvd files last
+            ours[path] = _identity(tmp)  # (known before the rename: an undo finds the file by it)
+            if overwrite and os.path.lexists(path):
+                aside[path] = out / f".{path.name}.{tag}.old"
+                os.replace(path, aside[path])
             _place(tmp, path, overwrite)
-            placed.append(path)
     except BaseException:
         for tmp, _ in staged:
             tmp.unlink(missing_ok=True)
-        if not overwrite:  # the files placed are this call's own (none was there): remove them too
-            for path in placed:
-                path.unlink(missing_ok=True)
+        _undo(ours, aside)
         if made:
             with contextlib.suppress(OSError):  # not empty: it holds what someone else put there
                 out.rmdir()
         raise
+    for old in aside.values():  # the whole series is in place: the files it replaced go
+        with contextlib.suppress(OSError):
+            old.unlink()
     return [path for _, path in staged]
+
+
+def _identity(path: pathlib.Path) -> tuple[int, int]:
+    """The device and inode of the file at ``path`` (a rename or a hard link keeps them)."""
+    st = os.lstat(path)
+    return st.st_dev, st.st_ino
+
+
+def _undo(ours: dict[pathlib.Path, tuple[int, int]], aside: dict[pathlib.Path, pathlib.Path]) -> None:
+    """Take back the renames of an unfinished ``write_series``: each file it put in place is removed,
+    and each file moved aside goes back under its name (over the new one, in one rename). Each step
+    is tried whatever the others do; a file that cannot be moved back stays under its temporary name.
+
+    Args:
+        ours: a name written: the identity (``_identity``) of the file written for it.
+        aside: a file that was there: the temporary name it was moved to (it may not have been yet).
+    """
+    for path, identity in ours.items():
+        with contextlib.suppress(OSError):
+            if path in aside and os.path.lexists(aside[path]):
+                os.replace(aside[path], path)
+            elif os.path.lexists(path) and _identity(path) == identity:
+                path.unlink()
 
 
 def _place(tmp: pathlib.Path, path: pathlib.Path, overwrite: bool) -> None:

@@ -6,9 +6,11 @@ exit status 2 and one ``jaxmpm: error:`` line, never a traceback. A run never re
 not told to, and finds an ``out`` it cannot write before it compiles anything.
 """
 
+import errno
 import json
 import os
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -437,3 +439,195 @@ def test_a_time_that_is_not_step_times_dt(good, tmp_path, capsys):
     t = arrays_of(good)["state.t"]
     edited = variant(good, tmp_path, state__t=np.asarray(t * (1 + 1e-12), dtype=t.dtype))
     assert_refused(edited, capsys, "state.t is", "but step 20 of dt = 1e-05 is at t = 0.0002")
+
+
+# --- arrays of another run under the metadata: the checks that need no recomputation of the run
+
+MISMATCH = "the checkpoint's arrays do not match its metadata: "
+
+
+def number_after(text: str, before: str) -> float:
+    """The number that follows ``before`` in ``text``."""
+    return float(re.search(re.escape(before) + r"(\S+?),? ", text).group(1))
+
+
+@pytest.mark.parametrize("param, value", [("P0", 6e5), ("gamma", 1.6), ("p_atm", 5e4)])
+def test_meta_names_another_material_than_the_stress_holds(good, tmp_path, capsys, param, value):
+    """The saved stress is the material's at the saved F: metadata naming other material parameters
+    than those the arrays were made with is refused, naming the first particle whose stress differs
+    and both values."""
+    params = dict(meta_of(good)["params"], **{param: value})
+    path = variant(good, tmp_path, meta={"params": params})
+    message = assert_refused(path, capsys)
+    saved = arrays_of(good)["state.sigma"][0, 0, 0]
+    head = f"{path}: {MISMATCH}state.sigma[0, 0, 0] is {float(saved)!r}, but the material of scene "
+    assert message.startswith(head + "gas-expansion with the saved params gives "), message
+    J = arrays_of(good)["state.F"][0, 0, 0]
+    expected = -(params["P0"] * J ** -params["gamma"] - params["p_atm"])
+    assert number_after(message, "with the saved params gives ") == pytest.approx(expected, rel=1e-12)
+    assert message.endswith(
+        " at the saved F; the meta names another scene, other parameters or another viscosity than the "
+        "arrays hold"
+    )
+
+
+@pytest.fixture(scope="module")
+def slab(tmp_path_factory) -> pathlib.Path:
+    """A complete saved run of a gas slab (P0 = 3e5, CPDI, FLIP, no history)."""
+    path = tmp_path_factory.mktemp("slab") / "slab.npz"
+    scene = jm.GasSlab(cells=8, h=1 / 8, pad=32)
+    long_run.run(scene, jm.CPDI(), dt=5e-6, steps=40, out=path, progress=False)
+    return path
+
+
+def test_arrays_of_a_run_under_the_metadata_of_another(slab, tmp_path, capsys):
+    """The arrays of a complete P0 = 3e5 FLIP run under metadata that says P0 = 9e5, PIC, one
+    artificial cell and a run of 80 steps, 40 done: refused (by the stress), not continued."""
+    meta = meta_of(slab)
+    meta["params"]["P0"] = 9e5
+    change = dict(params=meta["params"], transfer="pic", artificial_cells=1, steps=80, complete=False)
+    path = variant(slab, tmp_path, meta=change)
+    message = assert_refused(path, capsys, f"{path}: {MISMATCH}state.sigma[0, 0, 0] is ")
+    assert "but the material of scene gas-slab with the saved params gives " in message
+    assert long_run.load(slab)[1]["step"] == 40  # the file it was made from loads
+
+
+def test_a_stress_edited_beyond_round_off(slab, tmp_path, capsys):
+    """Round-off is allowed (4096 ulps of the stress's terms); a stress off by more is refused at the
+    particle where it is."""
+    sigma = arrays_of(slab)["state.sigma"].copy()
+    sigma[5, 0, 0] *= 1 + 1e-6
+    path = variant(slab, tmp_path, state__sigma=sigma)
+    assert_refused(path, capsys, f"{MISMATCH}state.sigma[5, 0, 0] is {float(sigma[5, 0, 0])!r}, but")
+    sigma[5, 0, 0] = arrays_of(slab)["state.sigma"][5, 0, 0] * (1 + 1e-14)
+    assert long_run.load(variant(slab, tmp_path, state__sigma=sigma))[1]["step"] == 40
+
+
+TUBE = jm.ShockTube(cells=20, h=0.05)
+TUBE_SAVEAT = jm.SaveAt(every=5, fields=("x", "v", "F", "sigma", "e"))
+
+
+@pytest.fixture(scope="module")
+def tube(tmp_path_factory) -> pathlib.Path:
+    """A complete saved run of a shock tube (two ideal-gas regions, with energy), with a history."""
+    path = tmp_path_factory.mktemp("tube") / "tube.npz"
+    long_run.run(TUBE, jm.SPQ(), dt=1e-3, steps=10, saveat=TUBE_SAVEAT, out=path, progress=False)
+    return path
+
+
+def test_meta_names_another_equation_of_state_than_the_stress_holds(tube, tmp_path, capsys):
+    """An ideal gas's stress is -(gamma - 1) rho e: the saved stress at the saved F and e under
+    another gamma is refused."""
+    assert long_run.load(tube)[1]["step"] == 10
+    params = dict(meta_of(tube)["params"], gamma=1.6)
+    path = variant(tube, tmp_path, meta={"params": params})
+    message = assert_refused(path, capsys, f"{path}: {MISMATCH}state.sigma[0, 0, 0] is ")
+    data = arrays_of(tube)
+    rho = params["rho_l"] / data["state.F"][0, 0, 0]
+    expected = -(params["gamma"] - 1) * rho * data["state.e"][0]
+    given = number_after(message, "shock-tube with the saved params gives ")
+    assert given == pytest.approx(expected, rel=1e-12)
+    assert " at the saved F and e; " in message
+
+
+@pytest.mark.parametrize(
+    "param, value, field, saved, initial",
+    [("p_l", 2.0, "sigma", -1.0, -2.0), ("u_l", 0.5, "v", 0.0, 0.5)],
+)
+def test_meta_names_another_initial_state_than_the_history_holds(
+    tube, tmp_path, capsys, param, value, field, saved, initial
+):
+    """The first frame of a history is the run's initial state: scene parameters that only set the
+    initial state (the left state's pressure, its velocity) are refused there."""
+    params = dict(meta_of(tube)["params"], **{param: value})
+    path = variant(tube, tmp_path, meta={"params": params})
+    message = assert_refused(path, capsys)
+    head = f"{path}: {MISMATCH}history.{field}[0, 0, 0"
+    assert message.startswith(head), message
+    assert number_after(message, "] (t = 0) is ") == pytest.approx(saved, rel=1e-12)
+    assert number_after(message, "with the saved params has ") == pytest.approx(initial, rel=1e-12)
+    assert message.endswith(
+        " (the first frame of a history is the run's initial state); the meta names another scene or "
+        "other parameters than the arrays hold"
+    )
+
+
+def test_history_times_that_are_not_the_saves(tube, tmp_path, capsys):
+    ts = arrays_of(tube)["history.ts"].copy()
+    ts[1] = 0.004
+    path = variant(tube, tmp_path, history__ts=ts)
+    assert_refused(
+        path,
+        capsys,
+        f"{path}: {MISMATCH}history.ts[1] is 0.004, but save 1 of one every 5 steps of dt = 0.001 is at "
+        "t = 0.005",
+    )
+
+
+@pytest.fixture(scope="module")
+def viscous_tube(tmp_path_factory) -> pathlib.Path:
+    path = tmp_path_factory.mktemp("viscous") / "tube.npz"
+    viscosity = jm.ArtificialViscosity()
+    long_run.run(TUBE, jm.SPQ(), dt=1e-3, steps=10, viscosity=viscosity, out=path, progress=False)
+    return path
+
+
+def test_a_viscous_run_under_metadata_without_viscosity(viscous_tube, tmp_path, capsys):
+    """The stress of a run with an artificial viscosity holds the viscous pressure of its last step,
+    which the file does not: its stress is not checked (it loads), and under metadata without the
+    viscosity it is refused where the viscous pressure is not round-off."""
+    assert long_run.load(viscous_tube)[1]["viscosity"] == [2.0, 0.2]
+    path = variant(viscous_tube, tmp_path, meta={"viscosity": None})
+    assert_refused(path, capsys, f"{path}: {MISMATCH}state.sigma[", "shock-tube with the saved params gives ")
+
+
+# --- a save that fails names the file asked for
+
+
+def test_a_full_disk_while_saving_names_the_file(tmp_path, monkeypatch):
+    """The error of a save that fails is the system's, naming ``out`` (not the temporary file beside
+    it, and no second file: ``-> None``); the temporary file is removed."""
+
+    def full(f, **arrays):
+        f.write(b"PK\x03\x04 half an archive")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(long_run.np, "savez", full)
+    out = tmp_path / "run.npz"
+    with pytest.raises(OSError) as info:
+        long_run.run(SCENE, jm.SPQ(), out=out, **KW)
+    assert str(info.value) == f"[Errno 28] No space left on device: '{out}'"
+    assert info.value.filename == str(out) and info.value.filename2 is None
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_rename_that_fails_names_the_file(tmp_path, monkeypatch):
+    """A rename into place that fails (its error names the temporary file and ``out``) names ``out``
+    alone."""
+    out = tmp_path / "run.npz"
+    real = os.replace
+
+    def replace(src, dst, *args, **kwargs):
+        if pathlib.Path(dst) == out:
+            raise OSError(errno.EIO, "Input/output error", str(src), str(dst))
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(OSError) as info:
+        long_run.run(SCENE, jm.SPQ(), out=out, **KW)
+    assert str(info.value) == f"[Errno 5] Input/output error: '{out}'"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_error_without_a_number_keeps_its_message(tmp_path):
+    """An ``OSError("message")`` of the writer is raised as it is (a file name would turn its text
+    into ``[Errno None] None: ...``)."""
+    from jaxmpm._files import write_whole
+
+    def broken(f):
+        raise OSError("the device went away")
+
+    with pytest.raises(OSError) as info:
+        write_whole(tmp_path / "a.bin", broken)
+    assert str(info.value) == "the device went away"
+    assert list(tmp_path.iterdir()) == []

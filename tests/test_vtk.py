@@ -2,6 +2,9 @@
 exactly the run's values, the grid fields are the step's own particle-to-grid transfer, and a run
 that breaks down still leaves its good frames."""
 
+import errno
+import os
+import pathlib
 import re
 
 import numpy as np
@@ -184,3 +187,92 @@ def test_cli_breakdown_still_writes_frames(tmp_path, capsys):
     F = read_legacy(frames[-1])["fields"]["J"]
     assert np.all(np.isfinite(F)) and np.all(F > 0)
     assert F.shape[0] == read_legacy(frames[0])["points"].shape[0]
+
+
+def _series(beta: float, steps: int):
+    scene = jm.GasExpansion(beta=beta, cells=2, ppc=1)
+    saveat = jm.SaveAt(every=1, fields=("x", "v", "F", "sigma"))
+    sol = jm.simulate(scene, jm.SPQ(), dt=1e-5, steps=steps, saveat=saveat)
+    return jm.Model(scene, jm.SPQ(), jm.FLIP()), sol
+
+
+def _files(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+
+@pytest.mark.parametrize("failure", [KeyboardInterrupt, OSError])
+def test_overwrite_replaces_a_series_whole_or_not_at_all(tmp_path, monkeypatch, failure):
+    """A Ctrl-C or an OSError at any rename of ``write_series(..., overwrite=True)`` (the temporary
+    files' and the renames over the series already there) leaves every file of the folder as it was,
+    byte for byte, with no temporary file; without one, the new series replaces the old one, and the
+    files of other names (frames of an earlier, longer series; the user's) are left as they are."""
+    folder = tmp_path / "frames"
+    jm.vtk.write_series(folder, *_series(200.0, 2))  # 3 frames
+    (folder / "particles_00009.vtk").write_text("frame 9 of an earlier, longer series")
+    (folder / "grid_00009.vtk").write_text("its grid")
+    (folder / "notes.txt").write_text("mine")
+    before = _files(folder)
+    model, sol = _series(100.0, 3)  # 4 frames: the fourth under a name not there before
+    jm.vtk.write_series(tmp_path / "fresh", model, sol)
+    expected = _files(tmp_path / "fresh")
+
+    real = os.replace
+    renames, fail_at = [0], [None]
+
+    def replace(src, dst, *args, **kwargs):
+        if tmp_path in pathlib.Path(dst).parents:
+            renames[0] += 1
+            if renames[0] == fail_at[0]:
+                raise failure() if failure is KeyboardInterrupt else OSError(errno.EIO, "I/O error")
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(os, "replace", replace)
+    jm.vtk.write_series(tmp_path / "count", model, sol)  # a new folder: only the temporary files' renames
+    written = renames[0]
+    assert written == 10
+    for k in range(1, 3 * written):  # every rename: the temporary files', the old files', the new files'
+        renames[0], fail_at[0] = 0, k
+        try:
+            jm.vtk.write_series(folder, model, sol, overwrite=True)
+        except failure:
+            pass
+        else:
+            assert k > renames[0], f"rename {k} of {renames[0]} did not fail"
+            break
+        assert _files(folder) == before, f"failed at rename {k}"
+    else:
+        raise AssertionError("every rename failed")
+    assert renames[0] == 2 * written + 8  # each file renamed into place, and each old one aside
+    after = _files(folder)
+    assert after == {**before, **expected}
+    assert sorted(set(after) - set(expected)) == ["grid_00009.vtk", "notes.txt", "particles_00009.vtk"]
+
+
+def test_a_new_series_interrupted_at_any_rename_leaves_nothing(tmp_path, monkeypatch):
+    """Into a folder it makes, ``write_series`` interrupted at any rename (the temporary files' or the
+    hard links into place) removes every file it wrote and the folder."""
+    model, sol = _series(100.0, 3)
+    folder = tmp_path / "frames"
+    real_replace, real_link = os.replace, os.link
+    calls, fail_at = [0], [None]
+
+    def failing(real):
+        def rename(src, dst, *args, **kwargs):
+            if tmp_path in pathlib.Path(dst).parents:
+                calls[0] += 1
+                if calls[0] == fail_at[0]:
+                    raise KeyboardInterrupt
+            return real(src, dst, *args, **kwargs)
+
+        return rename
+
+    monkeypatch.setattr(os, "replace", failing(real_replace))
+    monkeypatch.setattr(os, "link", failing(real_link))
+    for k in range(1, 21):  # 10 files: each renamed from its temporary file, then linked into place
+        calls[0], fail_at[0] = 0, k
+        with pytest.raises(KeyboardInterrupt):
+            jm.vtk.write_series(folder, model, sol)
+        assert not folder.exists() and list(tmp_path.iterdir()) == [], f"interrupted at rename {k}"
+    calls[0], fail_at[0] = 0, None
+    jm.vtk.write_series(folder, model, sol)
+    assert calls[0] == 20 and len(list(folder.iterdir())) == 10
