@@ -762,8 +762,9 @@ def _check_out(
         ``out`` as a ``pathlib.Path``.
 
     Raises:
-        ValueError: ``out`` is not a path, is a folder, exists (unless ``overwrite`` or ``own``), or
-            lies in a folder that does not exist or cannot be written.
+        ValueError: ``out`` is not a path, is a folder or another file that is not a regular one (a
+            device, even with ``overwrite``), exists (unless ``overwrite`` or ``own``), or lies in a
+            folder that does not exist or cannot be written.
     """
     if not isinstance(out, (str, os.PathLike)):
         raise ValueError(f"out must be a file path (a str or os.PathLike), got {out!r}")
@@ -772,6 +773,11 @@ def _check_out(
     if path.is_dir():
         raise ValueError(
             f"{named} is a folder, not a file; give a file to write the run to, e.g. {path / 'run.npz'}"
+        )
+    if path.exists() and not path.is_file():  # a device, a pipe, a socket: never replaced by a file
+        raise ValueError(
+            f"{named} is not a regular file (a device, pipe or socket), which a saved run would replace; "
+            "give a file path"
         )
     folder = path.parent
     if not folder.exists():

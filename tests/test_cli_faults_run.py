@@ -379,3 +379,19 @@ def test_bad_input_is_refused_before_joining_other_processes(bad, message):
     )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
     assert message in proc.stderr
+
+
+def test_out_that_is_not_a_regular_file_is_never_replaced(capsys, tmp_path):
+    import stat
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    for extra in ([], ["--overwrite"]):
+        line = failed(capsys, [*SMALL, "--out", str(fifo), *extra], 2)
+        assert line == (
+            f"jaxmpm: error: --out {fifo} is not a regular file (a device, pipe or socket), which a saved "
+            "run would replace; give a file path"
+        )
+        assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    with pytest.raises(ValueError, match=rf"^out={fifo} is not a regular file"):
+        jm.long_run.run(jm.GasExpansion(cells=2), jm.MPQ(), dt=1e-5, steps=2, out=fifo, overwrite=True)
