@@ -292,14 +292,20 @@ def gradient(
     Raises:
         ValueError: an unknown mode, or what ``objective`` refuses (a scene that is not a jaxmpm
             scene object, bad ``names``, a name given twice, an unknown ``error``), before anything is
-            traced; after the run, a run that broke down (``throw=False``).
+            traced; after the run, a run that broke down (``throw=False``) or an error that is not
+            finite.
     """
     if mode not in ("reverse", "forward"):
         raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")
     measured = _measured(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
     values = {n: as_float(dt if n == "dt" else getattr(scene, n)) for n in names}
+
+    def with_value(values):  # the error rides along, to be read outside the transformation
+        value, state = measured(values)
+        return value, (value, state)
+
     d = jax.grad if mode == "reverse" else jax.jacfwd
-    derivatives, state = d(measured, has_aux=True)(values)
+    derivatives, (value, state) = d(with_value, has_aux=True)(values)
     # outside the transformation, the run's status, steps and time are concrete
     _refuse_broken(
         state,
@@ -308,4 +314,9 @@ def gradient(
         "A smaller dt or fewer steps run to the end; jm.sensitivity.objective(..., with_status=True) "
         "gives the error of the last good state and its status, for jax.grad(..., has_aux=True).",
     )
+    if not np.isfinite(float(value)):
+        raise ValueError(
+            f"gradient() differentiates a finite error, and the error of this run is {float(value)!r}: "
+            "its derivatives would mean nothing (check the error function)"
+        )
     return derivatives

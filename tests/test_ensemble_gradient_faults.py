@@ -236,3 +236,12 @@ def test_objective_refuses_a_with_status_that_is_not_a_bool():
     objective = inspect.unwrap(jm.sensitivity.objective)  # past the suite's jaxtyping check, to its own
     with pytest.raises(ValueError, match=r"^with_status must be True or False, got 'yes'$"):
         objective(gas(), jm.MPQ(), ["beta"], with_status="yes", **RUN)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["reverse", "forward"])
+def test_a_gradient_of_an_error_that_is_not_finite_is_refused(mode):
+    # a constant NaN has derivative 0: without the check, the gradient would be {"beta": 0.0}
+    nan = lambda scene, sol: jnp.asarray(jnp.nan)  # noqa: E731
+    with pytest.raises(ValueError, match=r"^gradient\(\) differentiates a finite error, and the error of"):
+        jm.gradient(gas(), jm.MPQ(), ["beta"], error=nan, mode=mode, **RUN)
