@@ -287,6 +287,7 @@ def test_radial_at_takes_the_ends_and_round_off_beyond_the_surface(radial_small)
     np.testing.assert_array_equal(np.asarray(v), np.asarray(sol.v)[:, -1])
 
 
+@pytest.mark.slow
 def test_radial_profile_convergence_at_t_0_is_nan_without_a_warning():
     """At t = 0 the gas is at rest: v_l1 is 0 and its relative value is undefined (NaN), not 0 / 0 with a
     RuntimeWarning; the orders there are NaN too; later times are finite."""

@@ -294,6 +294,7 @@ def test_bad_dim_is_named():
         jm.Blast(dim=1)
 
 
+@pytest.mark.slow
 def test_cli_dim_2_json_nested_lists(capsys):
     code = main(
         [

@@ -73,6 +73,7 @@ def _es(scene_sol):
     return scene, sol.state, sol.body
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cpdi", "mpq"])
 def test_total_energy_between_walls_is_conserved_to_the_stated_bound(name):
     """To t = 0.6 (the waves have reflected off both walls), with viscosity: |drift| < 0.2%."""

@@ -214,6 +214,7 @@ def test_the_stiff_shock_tube_is_measured_where_its_exact_solution_holds(monkeyp
     assert stability.shock_markdown(results).count("F<=0@1") >= 1
 
 
+@pytest.mark.slow
 def test_the_multid_large_run_gives_no_throughput_for_a_run_that_broke_down(monkeypatch):
     simulate_timed = jm.simulate_timed
     # a step far beyond the stable limit: every run breaks down at its first step
