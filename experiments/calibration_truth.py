@@ -125,7 +125,7 @@ def information() -> dict:
 
 def profile(ref: dict) -> dict:
     """The loss 5% along the weakest direction from the fit, over the fitted loss, for the windows to
-    t = 1 and t = 4 (CPDI, 16 cells)."""
+    t = 1 and t = 4 (CPDI, 16 cells); ``None`` where a run along it broke down."""
     model = dict(cells=16, h=1 / 16, **UNIT)
     dt = _dt(jm.GasSlab(**START, **model))
     rises = {}
@@ -137,7 +137,8 @@ def profile(ref: dict) -> dict:
             scene, jm.CPDI(), ts, x, starts=TRUTH, dt=dt, max_correlation=1.0, max_relative_std=10.0
         )
         prof = cal.profile(scene, jm.CPDI(), ts, x, fit, [-0.05, 0.0, 0.05], dt=dt)
-        rises[f"t <= {t_end:g}"] = float(min(prof["loss"][0], prof["loss"][2]) / fit.loss)
+        ends = prof["ok"][[0, 2]].all()  # a point whose run broke down has no loss: no rise
+        rises[f"t <= {t_end:g}"] = float(min(prof["loss"][0], prof["loss"][2]) / fit.loss) if ends else None
     return rises
 
 
@@ -184,7 +185,9 @@ def markdown(r: dict) -> str:
         + ".",
         "",
         "The loss 5% along the weakest direction over the fitted loss (CPDI, 16 cells): "
-        + ", ".join(f"{v:.3f} with data to {k}" for k, v in r["profile"].items())
+        + ", ".join(
+            f"{'-' if v is None else format(v, '.3f')} with data to {k}" for k, v in r["profile"].items()
+        )
         + ".",
         "",
         f"Machine: {r['machine']}; total {r['wall_s']:.0f} s.",
