@@ -67,6 +67,7 @@ finite pressure).
 """
 
 import functools
+import math
 from collections.abc import Callable
 
 import equinox as eqx
@@ -76,6 +77,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._checks import (
+    any_traced,
     check_finite,
     check_greater,
     check_int,
@@ -84,8 +86,9 @@ from ._checks import (
     check_positive,
     check_real,
     is_concrete,
+    show,
 )
-from .explosives import GammaLawIsentrope
+from .explosives import GammaLawIsentrope, _check_stateless
 from .materials import AbstractEOS
 
 _ENDS = ("wall", "free")
@@ -393,8 +396,14 @@ class Isentrope(eqx.Module):
     ``cj_point``. The EOS's constants are leaves, so the fan differentiates through them and compiles
     once for all their values.
 
+    An EOS with energy (``b != 0``: ``JWL``, ``IdealGas``) is refused, its pressure depending on the
+    energy that ``p_s`` does not carry; ``Isentrope(JWLIsentrope.from_jwl(jwl, e0))`` is the principal
+    isentrope of a full-form JWL. ``b`` is checked at ``J = 1`` and ``J = 2`` where the EOS's fields
+    are concrete (a tracer passes).
+
     Attributes:
-        eos: the EOS; it has a reference density ``rho0``.
+        eos: the EOS, without internal variables; it has a reference density ``rho0``, the ``rho0``
+            that ``isentrope_fan`` and ``cj_point`` take with it.
     """
 
     eos: AbstractEOS
@@ -402,6 +411,18 @@ class Isentrope(eqx.Module):
     def __check_init__(self):
         if not isinstance(self.eos, AbstractEOS) or not hasattr(self.eos, "rho0"):
             raise ValueError(f"eos must be a barotropic AbstractEOS with a field rho0, got {self.eos!r}")
+        _check_stateless("eos", self.eos)
+        if any_traced(self.eos):
+            return
+        for J in (1.0, 2.0):
+            rho = self.eos.rho0 / J
+            _, b = self.eos.pressure_terms(rho, None)
+            if not bool(jnp.all(b == 0.0)):
+                raise ValueError(
+                    f"eos must be barotropic (b = 0 in p = a + b e), got {type(self.eos).__name__} with b = "
+                    f"{show(np.asarray(b))} at rho = {show(np.asarray(rho))}: p_s would drop its energy "
+                    "term; the principal isentrope of a JWL with energy is JWLIsentrope.from_jwl(eos, e0)"
+                )
 
     def __call__(self, J):
         """The pressure.
@@ -660,6 +681,23 @@ def _fan_particles(fan, X, t):
     return jnp.vectorize(one)(X, t)
 
 
+def _check_own_rho0(p_s, rho0) -> None:
+    """Check that ``rho0`` is the ``rho0`` of an ``Isentrope``'s EOS, the density its ``J`` is relative
+    to (another ``p_s`` passes, and so do tracers).
+
+    Raises:
+        ValueError: both are concrete numbers and differ (relative 1e-12).
+    """
+    if not isinstance(p_s, Isentrope):
+        return
+    own = p_s.eos.rho0
+    if is_concrete(own) and is_concrete(rho0) and np.ndim(rho0) == 0 and np.ndim(own) == 0:
+        if not math.isclose(float(rho0), float(own), rel_tol=1e-12):
+            raise ValueError(
+                f"rho0 must be the isentrope's own rho0 = {float(own)!r} (p_s.eos.rho0), got {float(rho0)!r}"
+            )
+
+
 def _wall_state(fan):
     """``J_wall``: the root of ``u(J) = 0`` in ``[J_CJ, J_max]``, with one Newton step on live values."""
     frozen = _stopped(fan)
@@ -684,7 +722,7 @@ def isentrope_fan(p_s, rho0, D, J_CJ, end="wall", J_max=1e3, nodes=64, cj_tol=1e
         p_s: the isentrope, a callable of a JAX array ``J`` (elementwise); ``gamma_law_isentrope`` and
             ``Isentrope`` build them. A pytree (an equinox Module) is traced through, so its
             parameters differentiate and one compilation serves all their values.
-        rho0: the explosive's initial density (> 0).
+        rho0: the explosive's initial density (> 0); of an ``Isentrope``, its EOS's own ``rho0``.
         D: the detonation speed (> 0).
         J_CJ: ``rho0 / rho`` at the CJ point (in ``(0, 1)``).
         end: ``"wall"`` (a rigid wall at ``x = 0``, the fan stops where ``u = 0``) or ``"free"`` (a
@@ -700,7 +738,8 @@ def isentrope_fan(p_s, rho0, D, J_CJ, end="wall", J_max=1e3, nodes=64, cj_tol=1e
 
     Raises:
         ValueError: ``p_s`` is not callable, ``end`` unknown, ``nodes`` not an integer >= 2, or a
-            concrete ``rho0`` or ``D`` not > 0, ``J_CJ`` not in ``(0, 1)``, ``J_max`` not > ``J_CJ``,
+            concrete ``rho0`` or ``D`` not > 0, ``rho0`` not the own ``rho0`` of an ``Isentrope``
+            ``p_s``, ``J_CJ`` not in ``(0, 1)``, ``J_max`` not > ``J_CJ``,
             ``D`` and ``J_CJ`` not the CJ point of ``p_s`` within ``cj_tol``, or (``end="wall"``) the
             fan not coming to rest below ``J_max``.
     """
@@ -709,6 +748,7 @@ def isentrope_fan(p_s, rho0, D, J_CJ, end="wall", J_max=1e3, nodes=64, cj_tol=1e
     _check_end(end)
     check_int("nodes", nodes, 2)
     _check_explosive(rho0, D)
+    _check_own_rho0(p_s, rho0)
     check_real("J_CJ", J_CJ)
     check_positive("J_CJ", J_CJ)
     check_less("J_CJ", J_CJ, 1.0)
@@ -767,7 +807,8 @@ def cj_point(p_s, rho0, J_lo=0.1, J_hi=1.0):
 
     Args:
         p_s: the isentrope, as for ``isentrope_fan``.
-        rho0: the explosive's initial density (> 0).
+        rho0: the explosive's initial density (> 0); of an ``Isentrope``, its EOS's own ``rho0`` (its
+            ``J`` is relative to that density).
         J_lo: the bracket's lower end (in ``(0, J_hi)``, where the left side is negative).
         J_hi: the bracket's upper end (<= 1, where the left side is positive).
 
@@ -776,13 +817,14 @@ def cj_point(p_s, rho0, J_lo=0.1, J_hi=1.0):
         ``c_CJ = J_CJ D`` and ``rho_CJ = rho0 / J_CJ``.
 
     Raises:
-        ValueError: ``p_s`` is not callable, or a concrete ``rho0`` is not > 0, the bracket not in
-            ``(0, 1]`` or not holding a sign change.
+        ValueError: ``p_s`` is not callable, or a concrete ``rho0`` is not > 0 or not the own ``rho0``
+            of an ``Isentrope`` ``p_s``, the bracket not in ``(0, 1]`` or not holding a sign change.
     """
     if not callable(p_s):
         raise ValueError(f"p_s must be callable (the isentrope p_s(J)), got {p_s!r}")
     check_real("rho0", rho0)
     check_positive("rho0", rho0)
+    _check_own_rho0(p_s, rho0)
     for name, value in (("J_lo", J_lo), ("J_hi", J_hi)):
         check_real(name, value)
         check_positive(name, value)

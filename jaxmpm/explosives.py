@@ -25,9 +25,21 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
-from ._checks import check_finite, check_greater, check_less, check_positive, check_real, is_concrete
+from ._checks import (
+    brief,
+    check_finite,
+    check_greater,
+    check_int,
+    check_less,
+    check_positive,
+    check_real,
+    check_scalar,
+    is_concrete,
+    python_int,
+)
 from ._util import as_float, power
 from .materials import AbstractEOS, AbstractStatelessEOS
 
@@ -316,6 +328,41 @@ def _cj_solve(products, rho0, e0, p0):
     return {"D": D, "P_CJ": p, "J_CJ": J, "u_CJ": u, "c_CJ": D - u, "rho_CJ": rho0 / J, "e_CJ": e}
 
 
+def _check_stateless(name: str, eos: object, dim: int = 1) -> None:
+    """Check an EOS that is read without internal variables (``pressure_terms(rho, None)``).
+
+    Args:
+        name: the parameter's name, for the message.
+        eos: its value.
+        dim: the dimension of the position its ``initial_internal`` is probed with.
+
+    Raises:
+        ValueError: ``eos`` is not an ``AbstractEOS``, or it has internal variables (a
+            ``ProgrammedBurn``).
+    """
+    if not isinstance(eos, AbstractEOS):
+        raise ValueError(
+            f"{name} must be an AbstractEOS without internal variables (its pressure_terms is read with "
+            f"z = None), got {type(eos).__name__}"
+        )
+    probe = jax.ShapeDtypeStruct((dim,), jnp.result_type(float))
+    if jax.eval_shape(eos.initial_internal, probe) is not None:
+        raise ValueError(f"{name} must have no internal variables ({type(eos).__name__} has some)")
+
+
+def _check_one(caller: str, **values) -> None:
+    """Check that each of ``values`` is one real number: ``caller`` solves for one explosive (tracers
+    pass, so ``jax.vmap`` over it solves for several).
+
+    Raises:
+        ValueError: a value is not a real number, or is an array with a shape.
+    """
+    batch = f"; for several, jax.vmap over {caller}"
+    for name, value in values.items():
+        check_real(name, value)
+        check_scalar(name, value, batch)
+
+
 def cj_state(products: AbstractEOS, rho0, e0=0.0, p0=0.0) -> dict[str, Float[Array, ""]]:
     """The Chapman-Jouguet state of a detonation into ``(rho0, p0, e0)`` whose products follow ``products``.
 
@@ -348,8 +395,12 @@ def cj_state(products: AbstractEOS, rho0, e0=0.0, p0=0.0) -> dict[str, Float[Arr
         Every value is NaN where the scan finds no interior minimum.
 
     Raises:
-        ValueError: ``rho0`` is not finite or not > 0, or ``e0``, ``p0`` not finite (concrete values).
+        ValueError: ``products`` is not an ``AbstractEOS`` without internal variables; ``rho0``, ``e0``
+            or ``p0`` is not one real number (an array: ``jax.vmap`` over ``cj_state`` solves several);
+            or (concrete values) ``rho0`` is not finite or not > 0, or ``e0``, ``p0`` not finite.
     """
+    _check_stateless("products", products)
+    _check_one("cj_state", rho0=rho0, e0=e0, p0=p0)
     rho0, e0, p0 = as_float(rho0), as_float(e0), as_float(p0)
     check_positive("rho0", rho0)
     check_finite("e0", e0)
@@ -376,9 +427,16 @@ def check_cj_consistency(
         ``cj_state(products, rho0, e0)``. Under a transformation (traced values) nothing is checked.
 
     Raises:
-        ValueError: the implied ``D`` (or ``P_CJ``) misses the given one by more than ``rtol``, relative:
-            one line with both values and the miss.
+        ValueError: the inputs are refused as by ``cj_state``, or ``D`` (``P_CJ``) is not one real
+            number, or ``rtol`` is not one finite number > 0; or the implied ``D`` (or ``P_CJ``) misses
+            the given one by more than ``rtol``, relative: one line with both values and the miss.
     """
+    _check_stateless("products", products)
+    given = {"D": D} if P_CJ is None else {"D": D, "P_CJ": P_CJ}
+    _check_one("check_cj_consistency", rho0=rho0, e0=e0, **given)
+    check_real("rtol", rtol)
+    check_scalar("rtol", rtol)
+    check_positive("rtol", rtol)
     cj = cj_state(products, rho0, e0)
     pairs = [("D", cj["D"], D)] + ([] if P_CJ is None else [("P_CJ", cj["P_CJ"], P_CJ)])
     for name, implied, given in pairs:
@@ -417,15 +475,22 @@ def cj_energy(products: AbstractEOS, rho0, D, p0=0.0, iterations: int = 8) -> Fl
         a CJ state of speed ``D``.
 
     Raises:
-        ValueError: ``D`` or ``rho0`` is not finite or not > 0, or (concrete values) no ``e0`` gives
-            the products a CJ state of speed ``D``: the iteration ends where the CJ state's speed
-            misses ``D`` (by more than the square root of the float dtype's epsilon, relative), its
-            ``J_CJ`` is not in ``(0, 1)``, or there is none (a ``D`` below the slowest detonation the
-            products have, or a barotropic EOS).
+        ValueError: ``products`` is not an ``AbstractEOS`` without internal variables; ``rho0``, ``D``
+            or ``p0`` is not one real number; ``iterations`` is not an integer >= 1; ``D`` or ``rho0``
+            is not finite or not > 0, or ``p0`` not finite; or (concrete values) no ``e0`` gives the
+            products a CJ state of speed ``D``: the iteration ends where the CJ state's speed misses
+            ``D`` (by more than the square root of the float dtype's epsilon, relative), its ``J_CJ``
+            is not in ``(0, 1)``, or there is none (a ``D`` below the slowest detonation the products
+            have, or a barotropic EOS).
     """
+    _check_stateless("products", products)
+    _check_one("cj_energy", rho0=rho0, D=D, p0=p0)
+    check_int("iterations", iterations, 1)
+    iterations = python_int(iterations)  # static: the length of the iteration
     D, rho0, p0 = as_float(D), as_float(rho0), as_float(p0)
     check_positive("D", D)
     check_positive("rho0", rho0)
+    check_finite("p0", p0)
     e0 = _cj_energy(products, rho0, D, p0, iterations)
     if is_concrete(e0) and not math.isfinite(float(e0)):
         raise ValueError(
@@ -493,10 +558,11 @@ def jwl(name: str, check: bool = True) -> tuple[JWL, Float[Array, ""]]:
         products.
 
     Raises:
-        ValueError: ``name`` is not a known explosive (the message lists them), or the row fails its check.
+        ValueError: ``name`` is not a known explosive (the message lists them; a value that is not a
+            string is no name), or the row fails its check.
     """
-    if name not in EXPLOSIVES:
-        raise ValueError(f"unknown explosive {name!r}; known: {', '.join(sorted(EXPLOSIVES))}")
+    if not isinstance(name, str) or name not in EXPLOSIVES:
+        raise ValueError(f"unknown explosive {brief(name)}; known: {', '.join(sorted(EXPLOSIVES))}")
     row = EXPLOSIVES[name]
     eos = JWL(*(row[k] for k in ("rho0", "A", "B", "R1", "R2", "w")))
     e0 = as_float(row["E0"]) / eos.rho0
@@ -643,21 +709,30 @@ class ProgrammedBurn(AbstractEOS):
         if count < 1:
             raise ValueError("give at least one detonator: points (k >= 1), planes or lines")
         check_finite("points", self.points)
-        probe = jax.ShapeDtypeStruct((self.points.shape[1],), self.points.dtype)
         for name, eos in (("reactant", self.reactant), ("products", self.products)):
-            if eos is not None and jax.eval_shape(eos.initial_internal, probe) is not None:
-                raise ValueError(f"{name} must have no internal variables ({type(eos).__name__} has some)")
+            if eos is not None:
+                _check_stateless(name, eos, self.points.shape[1])
 
     def lighting_time(self, X: Float[Array, " dim"]) -> Float[Array, ""]:
         """When the detonation reaches a particle: ``t_d + d(X) / D``, ``d`` the distance to the nearest
         detonator (point, plane or line).
 
         Args:
-            X: the particle's reference position.
+            X: the particle's reference position, of shape ``(dim,)`` (the detonators' dimension).
 
         Returns:
             ``t_b``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(dim,)`` (checked on the shape, so under ``jax.jit``
+                too).
         """
+        dim = self.points.shape[1]
+        if np.shape(X) != (dim,):
+            raise ValueError(
+                f"X must be one position of shape ({dim},) (the detonators' dimension), got shape "
+                f"{np.shape(X)}"
+            )
 
         def norm(r2):  # 0 gradient on a detonator, not NaN
             pos = r2 > 0
@@ -683,12 +758,15 @@ class ProgrammedBurn(AbstractEOS):
         """The burn criterion ``F`` at time ``t`` and volume ratio ``J``, before the max with ``lambda``.
 
         Args:
-            X: the particle's reference position.
+            X: the particle's reference position, of shape ``(dim,)``.
             t: time.
             J: volume ratio ``det F``.
 
         Returns:
             ``F_time``, ``F_volume`` or their maximum, as ``burn`` says.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(dim,)`` (``lighting_time``).
         """
         f_time = _ramp((t - self.lighting_time(X)) * self.D / self.width, self.smooth)
         f_volume = _ramp((1.0 - J) / (1.0 - self.J_CJ), self.smooth)

@@ -93,15 +93,17 @@ def _check_same_dim(shapes: tuple["AbstractShape", ...]) -> None:
         raise ValueError(f"shapes must all have the same dim, got dims {listed}")
 
 
-def _points(X: np.ndarray, dim: int) -> np.ndarray:
-    """``X`` as a float64 array of shape ``(n, dim)``, or a ValueError."""
+def _points(X: object, dim: int) -> np.ndarray:
+    """``X`` as a float64 array of shape ``(n, dim)``, or a ValueError naming ``X``."""
+    if not is_real(X):
+        raise ValueError(f"X must be an array of real numbers of shape (n, {dim}), got {brief(X)}")
     X = np.asarray(X, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != dim:
         raise ValueError(f"X must have shape (n, {dim}), got {X.shape}")
     return X
 
 
-def _squared_distance(X: np.ndarray, center: tuple[float, ...]) -> np.ndarray:
+def _squared_distance(X: object, center: tuple[float, ...]) -> np.ndarray:
     """``|X - center|^2`` of each point."""
     return np.sum(np.square(_points(X, len(center)) - np.asarray(center)), axis=1)
 
@@ -139,7 +141,8 @@ class AbstractShape(eqx.Module):
             A bool array of shape ``(n,)``.
 
         Raises:
-            ValueError: ``X`` is not of shape ``(n, dim)``.
+            ValueError: ``X`` is not an array of real numbers (a string, ``None``, a ragged list), or
+                not of shape ``(n, dim)``.
         """
 
     @abc.abstractmethod

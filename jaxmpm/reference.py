@@ -93,6 +93,7 @@ from ._checks import (
     check_nonnegative,
     check_positive,
     check_real,
+    check_scalar,
     is_concrete,
 )
 from .scenes.gas_slab import GasSlab
@@ -461,12 +462,15 @@ def gas_radial(
     Raises:
         ValueError: bad ``P0``, ``gamma``, ``p_atm``, ``rho0``, ``radius``, ``dim``, ``ts``,
             ``cells``, ``rtol``, ``atol``, ``max_steps``, ``viscosity``, ``q_quadratic`` or
-            ``q_linear``, named in the message; or the solve to ``ts[-1]`` needs more than
+            ``q_linear``, named in the message (each number parameter is one number: ``jax.vmap``
+            over ``gas_radial`` solves several charges); or the solve to ``ts[-1]`` needs more than
             ``max_steps`` steps (under ``jax.jit``, ``jax.grad`` or ``jax.vmap`` that, and any other
             failure of the solver, is diffrax's runtime error).
     """
+    batch = "; for several charges, jax.vmap over gas_radial"
     for name, value in (("P0", P0), ("gamma", gamma), ("p_atm", p_atm), ("rho0", rho0), ("radius", radius)):
         check_real(name, value)
+        check_scalar(name, value, batch)
     check_positive("P0", P0)
     check_greater("gamma", gamma, 1.0)
     check_positive("p_atm", p_atm)
@@ -478,13 +482,16 @@ def gas_radial(
         raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
     dim = int(dim)
     check_int("cells", cells, 2)
-    check_positive("rtol", rtol)
-    check_positive("atol", atol)
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        check_real(name, value)
+        check_scalar(name, value)
+        check_positive(name, value)
     check_int("max_steps", max_steps, 1)
     if not isinstance(viscosity, bool):
         raise ValueError(f"viscosity must be True or False, got {viscosity!r}")
     for name, value in (("q_quadratic", q_quadratic), ("q_linear", q_linear)):
         check_real(name, value)
+        check_scalar(name, value, batch)
         check_nonnegative(name, value)
     _check_times(ts)
 

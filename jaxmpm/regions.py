@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._checks import check_nonnegative, check_positive, check_real, is_concrete
+from ._checks import check_finite, check_nonnegative, check_positive, check_real, is_concrete
 from ._util import ONE_VALUE, as_float, check_real_fields, corner_signs, lattice
 from .geometry import AbstractShape
 from .materials import AbstractEOS, AbstractMaterial, ElasticPlastic
@@ -44,7 +44,10 @@ class Region(eqx.Module):
         velocity: its initial velocity, ``(dim,)`` (a number in 1D); by default at rest, the zero
             vector of the shape's dimension.
         energy: its initial specific internal energy (an ``AbstractEOS`` material only; 0 for
-            the models of ``F`` alone, which carry no energy).
+            the models of ``F`` alone, which carry no energy): finite, and >= 0 where the material
+            holds ``e >= 0`` in every state (``nonnegative_energy()``: an ideal gas, the explosives);
+            below 0 where ``e`` is measured from a reference state it may go below (a Mie-Grueneisen
+            solid started off its reference state).
     """
 
     shape: AbstractShape
@@ -73,7 +76,10 @@ class Region(eqx.Module):
                 f"{type(self.material).__name__}"
             )
         check_positive("rho0", self.rho0)
-        check_nonnegative("energy", self.energy)
+        if isinstance(self.material, AbstractEOS) and self.material.nonnegative_energy():
+            check_nonnegative("energy", self.energy)
+        else:
+            check_finite("energy", self.energy)
         if is_concrete(self.velocity) and not np.all(np.isfinite(np.asarray(self.velocity))):
             raise ValueError(f"velocity must be finite, got {np.asarray(self.velocity).tolist()}")
         if self.velocity.shape != (self.shape.dim,):

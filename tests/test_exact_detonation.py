@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxmpm import explosives
 from jaxmpm.exact_detonation import (
     Isentrope,
     cj_point,
@@ -21,7 +22,8 @@ from jaxmpm.exact_detonation import (
     gamma_law_wall_time,
     isentrope_fan,
 )
-from jaxmpm.explosives import JWLIsentrope
+from jaxmpm.explosives import GammaLawIsentrope, JWLIsentrope
+from jaxmpm.materials import IdealGas
 
 RHO0, D = 1.7, 0.8
 T = 1.3
@@ -354,6 +356,37 @@ def test_transformations():
 def test_bad_input_raises(call, name):
     with pytest.raises(ValueError, match=f"^{name} "):
         call()
+
+
+def test_isentrope_refuses_an_eos_with_energy_and_names_the_principal_isentrope():
+    """A JWL with its energy term (b = w rho) is not barotropic: Isentrope took its a alone (9.04e9 Pa
+    at J = 0.9 for TNT, against the principal isentrope's 1.143e10)."""
+    eos, e0 = explosives.jwl("tnt")
+    match = r"^eos must be barotropic \(b = 0 in p = a \+ b e\), got JWL with b = .*JWLIsentrope\.from_jwl"
+    with pytest.raises(ValueError, match=match):
+        Isentrope(eos)
+    principal = Isentrope(JWLIsentrope.from_jwl(eos, e0))
+    assert float(principal(0.9)) == pytest.approx(1.1434e10, rel=1e-4)
+    with pytest.raises(
+        ValueError, match=r"^eos must be a barotropic AbstractEOS with a field rho0, got IdealGas"
+    ):
+        Isentrope(IdealGas(1.4))
+
+
+@pytest.mark.parametrize("call", ["cj_point", "isentrope_fan"])
+def test_an_isentrope_takes_its_own_rho0(call):
+    """p_s(J) of an Isentrope is at rho = eos.rho0 / J: another rho0 gave another CJ speed (1.414 for
+    a gamma-law isentrope of rho0 = 1 and D = 2, given rho0 = 2)."""
+    p_s = Isentrope(GammaLawIsentrope(1.0, 2.0, 3.0))
+    match = r"^rho0 must be the isentrope's own rho0 = 1\.0 \(p_s\.eos\.rho0\), got 2\.0$"
+    with pytest.raises(ValueError, match=match):
+        if call == "cj_point":
+            cj_point(p_s, 2.0)
+        else:
+            isentrope_fan(p_s, 2.0, 2.0, 0.75, cj_tol=None)
+    cj = cj_point(p_s, 1.0)
+    assert float(cj["D"]) == pytest.approx(2.0, rel=1e-13) and float(cj["J_CJ"]) == pytest.approx(0.75)
+    assert float(isentrope_fan(p_s, 1.0, cj["D"], cj["J_CJ"]).P_CJ) == pytest.approx(1.0, rel=1e-12)
 
 
 _FAN = None

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm import explosives as ex
@@ -62,6 +63,48 @@ def test_a_row_with_transposed_digits_is_rejected():
 def test_unknown_explosive_lists_the_known_names():
     with pytest.raises(ValueError, match="'hmx'.*compb, pbx9404, petn, tnt"):
         ex.jwl("hmx")
+    # a name that is not a string (a list is not even hashable) gets the same message
+    with pytest.raises(ValueError, match=r"^unknown explosive \['tnt'\]; known: compb, pbx9404, petn, tnt$"):
+        raw(ex.jwl)(["tnt"])
+
+
+@pytest.mark.parametrize("name", ["rho0", "e0", "p0"])
+def test_cj_state_is_one_state_and_names_an_array_of_several(name):
+    """One CJ state per call: an array for e0 (or rho0, p0) is refused by name, with the way to run
+    several (it broadcast into the solver, or failed in its gradient); jax.vmap solves several."""
+    args = dict(rho0=1.0, e0=1.0, p0=0.0) | {name: np.array([1.0, 2.0])}
+    with pytest.raises(
+        ValueError,
+        match=rf"^{name} must be one number, got an array of shape \(2,\); .*jax\.vmap over cj_state",
+    ):
+        ex.cj_state(jm.IdealGas(1.4), **args)
+    D = jax.vmap(lambda e0: ex.cj_state(jm.IdealGas(1.4), 1.0, e0)["D"])(jnp.array([1.0, 2.0]))
+    np.testing.assert_allclose(D, np.sqrt(2.0 * (1.4**2 - 1.0) * np.array([1.0, 2.0])), rtol=1e-10)
+
+
+def test_cj_state_and_its_check_name_products_and_rtol():
+    eos, e0 = _tnt()
+    with pytest.raises(ValueError, match=r"^products must be an AbstractEOS .*got str$"):
+        raw(ex.cj_state)("tnt", 1630.0, 4.3e6)
+    for rtol, match in (
+        ("1%", r"^rtol must be a real number, got '1%'$"),
+        (-1.0, r"^rtol must be > 0, got -1\.0$"),
+        (0.0, r"^rtol must be > 0, got 0\.0$"),
+        (float("nan"), r"^rtol must be finite, got nan$"),
+        (np.array([0.01, 0.02]), r"^rtol must be one number, got an array of shape \(2,\)"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            raw(ex.check_cj_consistency)(eos, eos.rho0, e0, 6930.0, rtol=rtol)
+    with pytest.raises(ValueError, match=r"^D must be one number, got an array of shape \(2,\)"):
+        ex.check_cj_consistency(eos, eos.rho0, e0, np.array([6930.0, 7000.0]))
+
+
+@pytest.mark.parametrize("iterations", [0, -1, None, 2.5, True])
+def test_cj_energy_names_iterations(iterations):
+    # 0 and -1 blamed D (no Newton step leaves the start, whose speed is another), None was JAX's error
+    # and 2.5 was taken
+    with pytest.raises(ValueError, match=r"^iterations must be an integer >= 1, got "):
+        raw(ex.cj_energy)(jm.IdealGas(1.4), 1.0, 2.0, iterations=iterations)
 
 
 def test_ideal_gas_cj_is_the_gamma_law_closed_form():
@@ -262,6 +305,23 @@ def test_lighting_time_is_the_earliest_detonator():
     one = _burn(points=[0.5, 0.5])  # one point as a vector
     assert one.points.shape == (1, 2)
     assert _burn(points=0.25).points.shape == (1, 1)
+
+
+def test_lighting_time_refuses_a_position_of_another_dimension():
+    """X is one position of the detonators' dimension: a 2-vector against a 1D detonator broadcast to
+    a time (7.215e-4 s), here and under jax.jit (the check is on the shape)."""
+    pb = _burn(points=0.0)
+    lighting_time = raw(ex.ProgrammedBurn.lighting_time)  # past the suite's type checks of X's rank
+    for X, shape in ((jnp.array([3.0, 4.0]), r"\(2,\)"), (jnp.array([[3.0]]), r"\(1, 1\)"), (ONE, r"\(\)")):
+        match = rf"^X must be one position of shape \(1,\) \(the detonators' dimension\), got shape {shape}$"
+        with pytest.raises(ValueError, match=match):
+            lighting_time(pb, X)
+        with pytest.raises(ValueError, match=match.rstrip("$")):  # JAX appends a note on its traceback
+            jax.jit(lambda X: lighting_time(pb, X))(X)
+    assert float(pb.lighting_time(jnp.array([3.0]))) == pytest.approx(3.0 / TNT["D"], rel=1e-15)
+    plane = _burn(points=np.zeros((0, 2)), planes=[[1.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"^X must be one position of shape \(2,\)"):
+        plane.burn_fraction(jnp.array([1.0, 2.0, 3.0]), ONE, ONE)
 
 
 def test_mixture_pressure_terms():

@@ -5,6 +5,7 @@ import operator
 
 import numpy as np
 import pytest
+from helpers import raw
 
 from jaxmpm.geometry import (
     AbstractShape,
@@ -311,6 +312,17 @@ def test_inside_rejects_points_of_another_dim():
         Box((0, 0), (1, 1)).inside(np.zeros((3, 3)))
     with pytest.raises(ValueError, match=r"X must have shape \(n, 1\), got \(2, 2\)"):
         (Ball(0, 1) | Box(0, 1)).inside(np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize(
+    "shape", [Box(0, 1), Ball(0, 1), Shell(0, 0.5, 1), HalfSpace(1, 0), Box(0, 1) - Ball(0, 0.5)], ids=repr
+)
+@pytest.mark.parametrize("X", ["a", None, [["a"]], [[1j]], [[0.5], [0.2, 0.1]]], ids=repr)
+def test_inside_names_points_that_are_not_real_numbers(shape, X):
+    # NumPy's "could not convert string to float" named no parameter (the suite's runtime type checks
+    # refuse these first: raw is the call as a user makes it)
+    with pytest.raises(ValueError, match=r"^X must be an array of real numbers of shape \(n, 1\), got "):
+        raw(type(shape).inside)(shape, X)
 
 
 @pytest.mark.parametrize(

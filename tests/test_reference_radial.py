@@ -4,6 +4,7 @@ charges against the atmosphere, checked against the slab reference, its invarian
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm import reference
@@ -239,6 +240,15 @@ BAD = [
     (dict(q_quadratic=-1.0), "q_quadratic must be >= 0"),
     (dict(q_linear=np.nan), "q_linear must be finite"),
     (dict(q_linear="abc"), "q_linear must be a real number"),
+    # an array for one number failed in float() ("only 0-dimensional arrays ..."; of a list, TypeError)
+    (dict(P0=np.array([3e5, 4e5])), r"^P0 must be one number, got an array of shape \(2,\); .*jax\.vmap"),
+    (dict(P0=[3e5]), r"^P0 must be one number, got an array of shape \(1,\)"),
+    (dict(p_atm=[1e5]), r"^p_atm must be one number, got an array of shape \(1,\)"),
+    (dict(gamma=np.array([1.4, 1.6])), r"^gamma must be one number"),
+    (dict(rho0=[1.0, 2.0]), r"^rho0 must be one number"),
+    (dict(radius=[0.5]), r"^radius must be one number"),
+    (dict(q_linear=[0.5]), r"^q_linear must be one number"),
+    (dict(q_quadratic=[1.0]), r"^q_quadratic must be one number"),
 ]
 
 
@@ -247,3 +257,11 @@ def test_bad_input_names_the_parameter(bad, match):
     kwargs = GAS | dict(dim=2, ts=TS, cells=10) | bad
     with pytest.raises(ValueError, match=match):
         reference.gas_radial(**kwargs)
+
+
+@pytest.mark.parametrize("name", ["rtol", "atol"])
+def test_a_tolerance_is_one_number(name):
+    # (the suite's runtime type checks refuse a list for a float first: raw is the call as a user makes it)
+    kwargs = GAS | dict(dim=2, ts=TS, cells=10, **{name: [1e-8]})
+    with pytest.raises(ValueError, match=rf"^{name} must be one number, got an array of shape \(1,\)$"):
+        raw(reference.gas_radial)(**kwargs)

@@ -218,6 +218,12 @@ def test_negative_energy_is_a_named_breakdown():
     [
         (lambda: jm.Region(Box(0.0, 1.0), GAS, -1.0), "rho0 must be > 0"),
         (lambda: jm.Region(Box(0.0, 1.0), jm.IdealGas(gamma=1.4), 1.0, 0.0, -2.0), "energy must be >= 0"),
+        (
+            lambda: jm.Region(
+                Box(0.0, 1.0), jm.MieGruneisen(**jm.MIE_GRUNEISEN["copper"]), 8930.0, 0.0, np.inf
+            ),
+            "energy must be finite, got inf",
+        ),
         (lambda: jm.IdealGas(gamma=1.0), "gamma must be > 1"),
         (lambda: jm.Region(Box(0.0, 1.0), GAS, 1.0, 0.0, 1.0), "energy applies to an AbstractEOS"),
         (lambda: jm.Region(Box(0.0, 1.0), GAS, 1.0, (0.0, 1.0)), "velocity must have 1 components"),
@@ -237,7 +243,9 @@ def test_negative_energy_is_a_named_breakdown():
             ),
             "region 1 lies outside the grid",
         ),
-        (lambda: jm.ShockTube(p_r=-0.1), "p_r must be >= 0"),
+        (lambda: jm.ShockTube(p_r=-0.1), r"^p_r must be > 0, got -0\.1$"),
+        (lambda: jm.ShockTube(p_r=0.0), r"^p_r must be > 0, got 0\.0$"),  # vacuum: not a state of the tube
+        (lambda: jm.ShockTube(p_l=0.0), r"^p_l must be > 0, got 0\.0$"),
         (lambda: jm.ShockTube(rho_l=0.0), "rho_l must be > 0"),
         (lambda: jm.ShockTube(gamma=0.9), "gamma must be > 1"),
         (lambda: jm.ShockTube(x0=1.0), "x0 must be a fraction"),
@@ -426,6 +434,21 @@ def test_wave_speed_of_an_elastic_plastic_region_is_the_longitudinal_wave_the_st
     assert float(scene.wave_speed) == pytest.approx(c, rel=1e-12)
     sol = jm.simulate(scene, jm.CPDI(), dt=0.9 * 1e-3 / (c + 10.0), steps=2)
     assert sol.failure() is None
+
+
+def test_a_region_starts_below_zero_energy_where_its_material_allows_it():
+    """Mie-Grueneisen measures e from its reference state (nonnegative_energy() is False): a region of
+    copper may start at e = -100 J/kg (it was refused, "energy must be >= 0"), at the pressure its EOS
+    gives there; an ideal gas may not."""
+    copper = jm.MieGruneisen(**jm.MIE_GRUNEISEN["copper"])
+    region = jm.Region(Box(0.0, 1.0), copper, 8930.0, 0.0, -100.0)
+    assert float(region.energy) == -100.0
+    p = float(copper.pressure(region.rho0, region.energy))
+    assert p == pytest.approx(2.02 * 8930.0 * -100.0, rel=1e-12)  # Gamma0 rho_ref e at rho_ref
+    strong = jm.ElasticPlastic(copper, **jm.STRENGTH["copper"])
+    assert float(jm.Region(Box(0.0, 1.0), strong, 8930.0, 0.0, -100.0).energy) == -100.0
+    with pytest.raises(ValueError, match=r"^energy must be >= 0, got -2\.0$"):
+        jm.Region(Box(0.0, 1.0), jm.IdealGas(gamma=1.4), 1.0, 0.0, -2.0)
 
 
 def test_a_mie_gruneisen_energy_below_its_reference_is_no_breakdown():

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import raw
 
 import jaxmpm as jm
 from jaxmpm import exact
@@ -107,6 +108,48 @@ def test_detonation_names_gamma_and_its_range():
 )
 def test_detonation_names_each_parameter_with_huge_or_tiny_values(kw, match):
     _one_line(lambda: jm.Detonation(**kw), match)
+
+
+GURNEY_SIZES = dict(GurneySlab=dict(cells=4, ppc=1, pad=4), GurneyCylinder=dict(cells=10, ppc=1, pad=4))
+
+
+@pytest.mark.parametrize("scene", sorted(GURNEY_SIZES))
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        # D^2 overflowed into the region's energy ("energy must be finite"), or underflowed to P_CJ = 0
+        # and was taken; gamma = 1e300 gave "J_CJ must be < 1.0", a field of the programmed burn
+        (dict(D=1e300), r"^D must be in \(1\.492e-154, 1\.341e\+154\) .*got 1e\+300$"),
+        (dict(D=1e-300), r"^D must be in \(1\.492e-154, 1\.341e\+154\) .*got 1e-300$"),
+        (dict(gamma=1e300), r"^gamma must be in \(1, 4\.504e\+15\) .*J_CJ.*got 1e\+300$"),
+        (
+            dict(rho0=1e308),
+            r"^D=7980\.0, gamma=3\.0 and rho0=1e\+308 give the gamma law a CJ state .*P_CJ = inf",
+        ),
+        (dict(gamma=1.0 + 1e-15, D=1e154), r"^D=1e\+154, gamma=1\.000000000000001 .*e0 = inf"),
+    ],
+)
+def test_gurney_gamma_law_runs_the_detonations_range_checks(scene, kw, match):
+    make = getattr(jm, scene)
+    _one_line(lambda: make(explosive="gamma-law", **kw, **GURNEY_SIZES[scene]), match)
+
+
+def test_detonation_exact_takes_one_point_of_shape_1():
+    """exact(X, t) is a scene's exact solution at one particle, X of shape (1,) like every 1D scene's;
+    a number (0.05) failed with "'float' object is not subscriptable"."""
+    scene = jm.Detonation()
+    with pytest.raises(
+        ValueError, match=r"^X must be one reference position of shape \(1,\), got shape \(\)$"
+    ):
+        raw(jm.Detonation.exact)(scene, 0.05, 5e-6)
+    with pytest.raises(
+        ValueError, match=r"^X must be one reference position of shape \(1,\), got shape \(2,\)$"
+    ):
+        raw(jm.Detonation.smooth)(scene, jnp.array([0.05, 0.06]), 5e-6)
+    s = scene.exact(jnp.array([0.02]), 5e-6)
+    exact_p = jm.exact_detonation.gamma_law_particles(0.02, 5e-6, 1875.0, 8000.0, 3.0)
+    assert float(s["sigma"][0, 0]) == pytest.approx(-float(exact_p["p"]), rel=1e-14)
+    assert float(s["sigma"][0, 0]) < 0.0
 
 
 def test_detonation_defaults_rows_and_tracers_pass():

@@ -71,6 +71,70 @@ def _check_range(name: str, value, interval: tuple[float, float], why: str) -> N
         raise ValueError(f"{name} must be in ({lo:.4g}, {hi:.4g}) ({why}), got {float(value)!r}")
 
 
+def _check_gamma_law_ranges(D: Float[Array, ""], gamma: Float[Array, ""]) -> None:
+    """Check ``D`` and ``gamma`` against the intervals of ``_ranges`` in ``D``'s dtype (tracers pass).
+
+    Args:
+        D: the detonation speed, finite and > 0.
+        gamma: the products' exponent, finite and > 1.
+
+    Raises:
+        ValueError: ``D`` or ``gamma`` is outside its interval, named with what it keeps finite.
+    """
+    dtype = D.dtype
+    ranges = _ranges(dtype)
+    _check_range("D", D, ranges["D"], f"P_CJ and e0 are proportional to D^2, finite and > 0 in {dtype}")
+    _check_range(
+        "gamma",
+        gamma,
+        ranges["gamma"],
+        f"a finite CJ state needs J_CJ = gamma / (gamma + 1) below 1 in {dtype}",
+    )
+
+
+def _bad(value, below_one: bool = False) -> bool:
+    """Whether a derived quantity is not finite and > 0 (and < 1 with ``below_one``)."""
+    return not (jnp.isfinite(value) and value > 0 and (not below_one or value < 1))
+
+
+def _check_gamma_law_state(D: Float[Array, ""], gamma: Float[Array, ""], rho0: Float[Array, ""]) -> None:
+    """Check the gamma law's CJ state and detonation energy: each finite and > 0 (``J_CJ < 1``) in the
+    float dtype; tracers pass.
+
+    Args:
+        D: the detonation speed, in its range (``_check_gamma_law_ranges``).
+        gamma: the products' exponent, in its range.
+        rho0: the explosive's density, finite and > 0.
+
+    Raises:
+        ValueError: a quantity is out of the dtype's range, naming ``D``, ``gamma`` and ``rho0`` and
+            the quantities.
+    """
+    if not all(is_concrete(v) for v in (D, gamma, rho0)):
+        return
+    _, _, e0, cj = explosive_eos("gamma-law", "isentrope", D, gamma, rho0)
+    quantities = {k: cj[k] for k in ("P_CJ", "J_CJ", "u_CJ", "c_CJ", "rho_CJ", "e_CJ")}
+    quantities["e0"] = e0
+    wrong = [f"{k} = {float(v)!r}" for k, v in quantities.items() if _bad(v, below_one=k == "J_CJ")]
+    if wrong:
+        raise ValueError(
+            f"D={float(D)!r}, gamma={float(gamma)!r} and rho0={float(rho0)!r} give the gamma law a CJ "
+            f"state out of the {D.dtype} range ({', '.join(wrong)}); P_CJ = rho0 D^2 / (gamma + 1), e0 = "
+            "D^2 / (2 (gamma^2 - 1)) and the rest must be finite and > 0"
+        )
+
+
+def _check_one_point(X) -> None:
+    """Check that ``X`` is one reference position of a 1D scene, of shape ``(1,)`` (the shape is known
+    for tracers too).
+
+    Raises:
+        ValueError: ``X`` has another shape (a number: ``[X]`` is the position).
+    """
+    if np.shape(X) != (1,):
+        raise ValueError(f"X must be one reference position of shape (1,), got shape {np.shape(X)}")
+
+
 def explosive_eos(
     explosive: str, products: str, D: Float[Array, ""], gamma: Float[Array, ""], rho0: Float[Array, ""]
 ) -> tuple[Float[Array, ""], AbstractEOS, Float[Array, ""], dict[str, Array]]:
@@ -217,17 +281,7 @@ class Detonation(AbstractScene):
         check_positive("rho0", self.rho0)
         check_positive("L", self.L)
         _check_burn_width(self.burn_width)
-        dtype = self.D.dtype
-        ranges = _ranges(dtype)
-        _check_range(
-            "D", self.D, ranges["D"], f"P_CJ and e0 are proportional to D^2, finite and > 0 in {dtype}"
-        )
-        _check_range(
-            "gamma",
-            self.gamma,
-            ranges["gamma"],
-            f"a finite CJ state needs J_CJ = gamma / (gamma + 1) below 1 in {dtype}",
-        )
+        _check_gamma_law_ranges(self.D, self.gamma)
         if self.explosive != "gamma-law":
             jwl(self.explosive)  # a row whose implied CJ state misses its tabulated D is refused
         self._check_derived()
@@ -239,39 +293,24 @@ class Detonation(AbstractScene):
         if not all(is_concrete(v) for v in (self.D, self.gamma, self.rho0, self.L, self.burn_width)):
             return
         dtype = self.D.dtype
-
-        def bad(value, below_one: bool = False) -> bool:
-            return not (jnp.isfinite(value) and value > 0 and (not below_one or value < 1))
-
         if self.explosive == "gamma-law":
-            _, _, e0, cj = self._explosive()
-            quantities = {k: cj[k] for k in ("P_CJ", "J_CJ", "u_CJ", "c_CJ", "rho_CJ", "e_CJ")}
-            quantities["e0"] = e0
-            if not all(is_concrete(v) for v in quantities.values()):
-                return
-            wrong = [f"{k} = {float(v)!r}" for k, v in quantities.items() if bad(v, below_one=k == "J_CJ")]
-            if wrong:
-                raise ValueError(
-                    f"D={float(self.D)!r}, gamma={float(self.gamma)!r} and rho0={float(self.rho0)!r} give "
-                    f"the gamma law a CJ state out of the {dtype} range ({', '.join(wrong)}); P_CJ = rho0 "
-                    "D^2 / (gamma + 1), e0 = D^2 / (2 (gamma^2 - 1)) and the rest must be finite and > 0"
-                )
+            _check_gamma_law_state(self.D, self.gamma, self.rho0)
         h = self.h
         width = self.burn_width * h / self.ppc
         t_valid = self.L / self.speed
         if not all(is_concrete(v) for v in (h, width, t_valid)):
             return
-        if bad(h):
+        if _bad(h):
             raise ValueError(
                 f"L={float(self.L)!r} gives a cell size h = L / cells = {float(h)!r} in {dtype} "
                 f"(cells={self.cells}); it must be finite and > 0"
             )
-        if bad(width):
+        if _bad(width):
             raise ValueError(
                 f"burn_width={float(self.burn_width)!r} with L={float(self.L)!r} gives the burn a length "
                 f"burn_width h / ppc = {float(width)!r} in {dtype}; it must be finite and > 0"
             )
-        if bad(t_valid):
+        if _bad(t_valid):
             raise ValueError(
                 f"L={float(self.L)!r} and the front's speed {float(self.speed)!r} (D) give t_valid = L / D = "
                 f"{float(t_valid)!r} in {dtype}; it must be finite and > 0"
@@ -357,12 +396,16 @@ class Detonation(AbstractScene):
         """The exact solution at one material point.
 
         Args:
-            X: reference position.
+            X: reference position, of shape ``(1,)`` (as every 1D scene's).
             t: time.
 
         Returns:
             ``dict(x, v, F, sigma)``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)`` (a number ``X0``: ``[X0]`` is the position).
         """
+        _check_one_point(X)
         s = self.exact_particles(X[0], t)
         return dict(
             x=jnp.reshape(s["x"], (1,)),
@@ -375,10 +418,14 @@ class Detonation(AbstractScene):
         """Whether a particle is burnt and farther than ``12 h`` (reference length) behind the front.
 
         Args:
-            X: reference position.
+            X: reference position, of shape ``(1,)``.
             t: time.
 
         Returns:
             ``True`` in the products away from the front.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        _check_one_point(X)
         return X[0] < self.speed * t - 12.0 * self.h

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_nonnegative, check_positive, is_concrete
+from .._checks import check_finite, check_positive, is_concrete
 from .._util import as_float, static_fraction
 from ..exact_euler import riemann_solution, riemann_waves, vacuum_generated
 from ..geometry import AbstractShape, Box
@@ -71,7 +71,8 @@ class ShockTube(AbstractScene):
     ``rho*_L = 0.42632``, ``rho*_R = 0.26557`` (Toro, Table 4.3), usually compared at ``t = 0.2``.
 
     Attributes:
-        rho_l, u_l, p_l: the left state (density > 0, velocity, pressure >= 0).
+        rho_l, u_l, p_l: the left state (density > 0, velocity, pressure > 0: ``p = 0`` is a vacuum,
+            which the exact solver does not cover).
         rho_r, u_r, p_r: the right state.
         gamma: ratio of specific heats of both gases, > 1.
         x0: where the states meet, as a fraction of the tube's length ``L = cells h`` (static, in
@@ -108,8 +109,8 @@ class ShockTube(AbstractScene):
     def __check_init__(self):
         check_positive("rho_l", self.rho_l)
         check_positive("rho_r", self.rho_r)
-        check_nonnegative("p_l", self.p_l)
-        check_nonnegative("p_r", self.p_r)
+        check_positive("p_l", self.p_l)
+        check_positive("p_r", self.p_r)
         check_finite("u_l", self.u_l)
         check_finite("u_r", self.u_r)
         if not isinstance(self.x0, (int, float)) or not 0.0 < float(self.x0) < 1.0:
