@@ -1,5 +1,7 @@
 """``jaxmpm scenes``: the scenes, their parameters and defaults."""
 
+import math
+
 import jaxmpm as jm
 
 from ._common import print_json
@@ -19,6 +21,9 @@ def add_parser(subparsers) -> None:
 def command(args) -> int:
     """List every scene: a table, or with ``--json`` one object ``{name: {description, parameters}}``.
 
+    A default of NaN (``null`` in JSON) is a parameter that, when not given, the scene derives from
+    its others (the Gurney scenes' ``sqrt_2E`` from ``explosive``); the table says so.
+
     Args:
         args: the parsed command line.
 
@@ -37,5 +42,7 @@ def command(args) -> int:
         print(f"{name}: {cls.description}")
         for key, value in cls.parameters().items():
             kind = type(value).__name__
+            if isinstance(value, float) and math.isnan(value):
+                kind += "; not given: derived from the others, see the scene's docstring"
             print(f"    {key:<8} = {value!r:<10} ({kind})")
     return 0

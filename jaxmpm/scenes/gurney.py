@@ -1,5 +1,6 @@
 """An explosive driving metal: the open-faced sandwich of Gurney's formula in 1D, and the cylinder in 2D."""
 
+import math
 from typing import ClassVar
 
 import equinox as eqx
@@ -14,7 +15,14 @@ from ..materials import MIE_GRUNEISEN, STRENGTH, ElasticPlastic, MieGruneisen
 from ..particles import Body, State
 from ..regions import Region
 from ._base import AbstractScene
-from .detonation import EXPLOSIVE_NAMES, PRODUCTS, _check_burn_width, explosive_eos
+from .detonation import (
+    EXPLOSIVE_NAMES,
+    PRODUCTS,
+    _check_burn_width,
+    _check_gamma_law_ranges,
+    _check_gamma_law_state,
+    explosive_eos,
+)
 from .shock_tube import check_split
 
 
@@ -53,6 +61,12 @@ def gurney_cylinder(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""
     return jnp.asarray(sqrt_2E) / jnp.sqrt(jnp.asarray(M_over_C) + 0.5)
 
 
+GURNEY_VELOCITIES: dict[str, float] = {"compb": 2700.0, "tnt": 2440.0, "petn": 2930.0, "pbx9404": 2900.0}
+"""The Gurney velocities ``sqrt(2E)`` (m/s) of the JWL rows of ``jaxmpm.explosives.EXPLOSIVES``: R. R.
+Kennedy's (1970), as tabulated by P. W. Cooper, "Explosives Engineering" (1996): Comp B 2.70 mm/us at
+1.717 g/cm^3, TNT 2.44 at 1.63, PETN 2.93 at 1.76 and PBX-9404 2.90 at 1.84. The Gurney scenes take
+their ``sqrt_2E`` from here when it is not given."""
+
 GURNEY_EXPLOSIVES = EXPLOSIVE_NAMES + ("jwl",)
 """The Gurney scenes' ``explosive`` choices: ``Detonation``'s, and ``"jwl"`` of the scene's own constants."""
 
@@ -75,7 +89,10 @@ class AbstractGurney(AbstractScene):
     ``D``. The metal is ``MieGruneisen`` of ``MIE_GRUNEISEN[metal]``, at rest at its reference density.
 
     Attributes:
-        sqrt_2E: the explosive's Gurney velocity (m/s), for ``gurney_velocity``.
+        sqrt_2E: the explosive's Gurney velocity (m/s), for ``gurney_velocity``. Not given (NaN, the
+            default), a JWL row's is ``GURNEY_VELOCITIES[explosive]`` (TNT's 2440 m/s, say), and that
+            of ``"gamma-law"`` and ``"jwl"`` is Comp B's 2700 m/s, as their default constants are
+            Comp B's: give it where they are another explosive's.
         D, gamma, rho0: the gamma-law products (with ``explosive="gamma-law"``; ``D`` and ``rho0`` also
             with ``"jwl"``).
         A, B, R1, R2, w: the JWL constants (with ``explosive="jwl"``; Pa for ``A`` and ``B``): ``A``
@@ -89,7 +106,7 @@ class AbstractGurney(AbstractScene):
             assumes.
     """
 
-    sqrt_2E: Float[Array, ""] = eqx.field(converter=as_float, default=2700.0)
+    sqrt_2E: Float[Array, ""] = eqx.field(converter=as_float, default=math.nan)
     D: Float[Array, ""] = eqx.field(converter=as_float, default=7980.0)
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=3.0)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1717.0)
@@ -105,14 +122,28 @@ class AbstractGurney(AbstractScene):
     metal: str = eqx.field(static=True, default="steel-4340")
     strength: bool = eqx.field(static=True, default=False)
 
+    def __post_init__(self):
+        """The scene's checks of the values as given (``AbstractScene.__post_init__``), then the Gurney
+        velocity of the explosive where ``sqrt_2E`` is not given (NaN): ``GURNEY_VELOCITIES`` of a JWL
+        row, Comp B's for ``"gamma-law"`` and ``"jwl"`` (and for an unknown ``explosive``, which
+        ``__check_init__`` refuses).
+        """
+        super().__post_init__()
+        if isinstance(self.sqrt_2E, float) and math.isnan(self.sqrt_2E):
+            known = isinstance(self.explosive, str) and self.explosive in GURNEY_VELOCITIES
+            self.sqrt_2E = GURNEY_VELOCITIES[self.explosive if known else "compb"]
+
     def __check_init__(self):
         """Check the explosive's and the metal's parameters, each by its own name.
 
         Raises:
             ValueError: a static choice is not one of those allowed; ``sqrt_2E`` or ``D`` is not finite
-                and > 0; ``gamma`` is not finite and > 1; ``burn_width`` is below 1; ``A`` or ``B`` is
-                not finite, or ``R1``, ``R2`` or ``w`` not finite and > 0 (whichever explosive runs).
-                Tracers are not checked.
+                and > 0; ``gamma`` is not finite and > 1; ``rho0`` is not finite and > 0; ``D`` or
+                ``gamma`` is outside the range where the gamma law's CJ state is finite in the float
+                dtype, or (``explosive="gamma-law"``) that CJ state or detonation energy is not
+                finite and > 0, as ``Detonation`` checks them; ``burn_width`` is below 1; ``A`` or
+                ``B`` is not finite, or ``R1``, ``R2`` or ``w`` not finite and > 0 (whichever explosive
+                runs). Tracers are not checked.
         """
         if not isinstance(self.strength, bool):
             raise ValueError(f"strength must be true or false, got {self.strength!r}")
@@ -127,6 +158,10 @@ class AbstractGurney(AbstractScene):
         check_positive("sqrt_2E", self.sqrt_2E)
         check_positive("D", self.D)
         check_greater("gamma", self.gamma, 1.0)
+        check_positive("rho0", self.rho0)
+        _check_gamma_law_ranges(self.D, self.gamma)
+        if self.explosive == "gamma-law":
+            _check_gamma_law_state(self.D, self.gamma, self.rho0)
         _check_burn_width(self.burn_width)
         # The JWL constants are checked whichever explosive runs (as JWL checks them: A and B finite,
         # R1, R2 and w > 0): a bad value is refused, not kept in the run's parameters unused.
