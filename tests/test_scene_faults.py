@@ -139,17 +139,48 @@ def test_detonation_exact_takes_one_point_of_shape_1():
     a number (0.05) failed with "'float' object is not subscriptable"."""
     scene = jm.Detonation()
     with pytest.raises(
-        ValueError, match=r"^X must be one reference position of shape \(1,\), got shape \(\)$"
+        ValueError,
+        match=r"^X must be one reference position of shape \(1,\), got shape \(\) "
+        r"\(several: jax.vmap over them\)$",
     ):
         raw(jm.Detonation.exact)(scene, 0.05, 5e-6)
     with pytest.raises(
-        ValueError, match=r"^X must be one reference position of shape \(1,\), got shape \(2,\)$"
+        ValueError,
+        match=r"^X must be one reference position of shape \(1,\), got shape \(2,\) "
+        r"\(several: jax.vmap over them\)$",
     ):
         raw(jm.Detonation.smooth)(scene, jnp.array([0.05, 0.06]), 5e-6)
     s = scene.exact(jnp.array([0.02]), 5e-6)
     exact_p = jm.exact_detonation.gamma_law_particles(0.02, 5e-6, 1875.0, 8000.0, 3.0)
     assert float(s["sigma"][0, 0]) == pytest.approx(-float(exact_p["p"]), rel=1e-14)
     assert float(s["sigma"][0, 0]) < 0.0
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [jm.Riemann(), jm.VacuumExpansion(), jm.VibratingBar(), jm.GasExpansion(), jm.GasExpansion(dim=2)],
+    ids=["riemann", "vacuum-expansion", "vibrating-bar", "gas-expansion", "gas-expansion-2d"],
+)
+def test_every_exact_solution_takes_one_point_of_the_scenes_dimension(scene):
+    """A number, or several positions in one array, is refused by name (a number failed with "'float'
+    object is not subscriptable", and the vacuum expansion silently took the first of two positions);
+    one position given as a list is that position."""
+    dim = scene.dim
+    t = 1e-4
+    for X in (0.05, [0.05] * (dim + 1), np.full((1, dim), 0.05)):
+        with pytest.raises(
+            ValueError, match=rf"^X must be one reference position of shape \({dim},\), got shape"
+        ):
+            raw(type(scene).exact)(scene, X, t)
+    one = scene.exact(jnp.full((dim,), 0.05), t)
+    listed = raw(type(scene).exact)(scene, [0.05] * dim, t)
+    for name in ("x", "v", "F", "sigma"):
+        np.testing.assert_array_equal(listed[name], one[name])
+    many = jax.vmap(lambda X: scene.exact(X, t))(jnp.full((3, dim), 0.05))
+    np.testing.assert_array_equal(many["F"][0], one["F"])
+    if callable(getattr(scene, "smooth", None)):
+        with pytest.raises(ValueError, match=r"^X must be one reference position of shape \(1,\)"):
+            raw(type(scene).smooth)(scene, [0.05, 0.06], t)
 
 
 def test_detonation_defaults_rows_and_tracers_pass():

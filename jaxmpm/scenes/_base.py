@@ -44,6 +44,29 @@ def _check_particle_sizes(h, rho0, ppc, dim, region: int | None = None) -> None:
         )
 
 
+def check_point(X: object, dim: int) -> Array:
+    """One reference position ``X`` of a scene's ``exact`` or ``smooth``: an array of shape ``(dim,)``
+    (the shape is known for tracers too, so this holds under ``jax.vmap`` over particles).
+
+    Args:
+        X: the position given.
+        dim: the scene's dimension.
+
+    Returns:
+        ``X`` as an array.
+
+    Raises:
+        ValueError: ``X`` is not of shape ``(dim,)`` (a number in 1D: ``[X]`` is the position; several
+            positions: ``jax.vmap`` over them).
+    """
+    if np.shape(X) != (dim,):
+        raise ValueError(
+            f"X must be one reference position of shape ({dim},), got shape {np.shape(X)} "
+            "(several: jax.vmap over them)"
+        )
+    return jnp.asarray(X)
+
+
 class AbstractScene(eqx.Module):
     """A body on ``[0, cells h]^dim`` with ``ppc`` particles per cell and axis, padded by ``pad`` cells.
 

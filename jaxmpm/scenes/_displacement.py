@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 
 class AbstractDisplacementScene(AbstractScene):
@@ -70,7 +70,11 @@ class AbstractDisplacementScene(AbstractScene):
         Returns:
             ``dict(x, v, F, sigma)``: ``x = X + u``, ``v = du/dt``, ``F = I + du/dX`` and the
             material's Cauchy stress at that ``F``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(dim,)``.
         """
+        X = check_point(X, self.dim)
         F = self._F(X, t)
         return dict(
             x=X + self.displacement(X, t),

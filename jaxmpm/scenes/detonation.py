@@ -22,7 +22,7 @@ from ..explosives import (
 from ..geometry import Box
 from ..materials import AbstractEOS, IdealGas
 from ..regions import Region
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 EXPLOSIVE_NAMES = ("gamma-law",) + tuple(EXPLOSIVES)
 """The ``explosive`` choices: gamma-law products of the given ``D`` and ``gamma``, or a JWL row."""
@@ -122,17 +122,6 @@ def _check_gamma_law_state(D: Float[Array, ""], gamma: Float[Array, ""], rho0: F
             f"state out of the {D.dtype} range ({', '.join(wrong)}); P_CJ = rho0 D^2 / (gamma + 1), e0 = "
             "D^2 / (2 (gamma^2 - 1)) and the rest must be finite and > 0"
         )
-
-
-def _check_one_point(X) -> None:
-    """Check that ``X`` is one reference position of a 1D scene, of shape ``(1,)`` (the shape is known
-    for tracers too).
-
-    Raises:
-        ValueError: ``X`` has another shape (a number: ``[X]`` is the position).
-    """
-    if np.shape(X) != (1,):
-        raise ValueError(f"X must be one reference position of shape (1,), got shape {np.shape(X)}")
 
 
 def explosive_eos(
@@ -405,7 +394,7 @@ class Detonation(AbstractScene):
         Raises:
             ValueError: ``X`` is not of shape ``(1,)`` (a number ``X0``: ``[X0]`` is the position).
         """
-        _check_one_point(X)
+        X = check_point(X, 1)
         s = self.exact_particles(X[0], t)
         return dict(
             x=jnp.reshape(s["x"], (1,)),
@@ -427,5 +416,5 @@ class Detonation(AbstractScene):
         Raises:
             ValueError: ``X`` is not of shape ``(1,)``.
         """
-        _check_one_point(X)
+        X = check_point(X, 1)
         return X[0] < self.speed * t - 12.0 * self.h

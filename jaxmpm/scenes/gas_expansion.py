@@ -10,7 +10,7 @@ from jaxtyping import Array, ArrayLike, Float
 from .._checks import check_finite
 from .._util import as_float
 from ..materials import AdiabaticGas
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 
 class GasExpansion(AbstractScene):
@@ -83,7 +83,11 @@ class GasExpansion(AbstractScene):
         Returns:
             ``dict(x, v, F, sigma)``: ``x = (1 + beta t) X``, ``v = beta X``, ``F = (1 + beta t) I``
             and the gas's stress at that ``F``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(dim,)``.
         """
+        X = check_point(X, self.dim)
         F = 1.0 + self.beta * t
         if self.dim == 1:
             F_mat = jnp.reshape(F, (1, 1)) * jnp.ones((1, 1), dtype=X.dtype)

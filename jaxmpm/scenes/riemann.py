@@ -17,7 +17,7 @@ from .._checks import (
 from .._util import as_float
 from ..exact import riemann_solution, riemann_waves, vacuum_forms
 from ..materials import AdiabaticGas
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 
 class Riemann(AbstractScene):
@@ -194,7 +194,11 @@ class Riemann(AbstractScene):
 
         Returns:
             ``dict(x, v, F, sigma)``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        X = check_point(X, 1)
         positive = t > 0
         ts = jnp.where(positive, t, 1.0)
         xi = jnp.where(positive, (X[0] - self.X0) / ts, jnp.where(X[0] < self.X0, -jnp.inf, jnp.inf))
@@ -216,7 +220,11 @@ class Riemann(AbstractScene):
 
         Returns:
             ``True`` away from the waves' edges.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        X = check_point(X, 1)
         w = self.waves()
         edges = jnp.stack([w["a1"], w["b1"], w["a2"], w["b2"]]) * t + self.X0
         return jnp.all(jnp.abs(X[0] - edges) > margin * self.length)

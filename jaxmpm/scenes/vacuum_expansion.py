@@ -10,7 +10,7 @@ from .._checks import check_positive
 from .._util import as_float
 from ..exact import vacuum_expansion
 from ..materials import AdiabaticGas
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 
 class VacuumExpansion(AbstractScene):
@@ -80,7 +80,11 @@ class VacuumExpansion(AbstractScene):
         Returns:
             ``dict(x, v, F, sigma)``: ``F`` the exact average over the particle's domain, the others
             point values at its centre.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        X = check_point(X, 1)
         r0 = 0.5 * self.h / self.ppc
         x, v, F_point = self._point(X[0], t)
         x_lo, _, _ = self._point(X[0] - r0, t)
@@ -101,6 +105,10 @@ class VacuumExpansion(AbstractScene):
 
         Returns:
             ``True`` away from both.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        X = check_point(X, 1)
         head = self.length - self.c0 * t
         return (jnp.abs(X[0] - head) > margin * self.length) & (X[0] < (1.0 - margin) * self.length)

@@ -9,7 +9,7 @@ from jaxtyping import Array, ArrayLike, Float
 from .._checks import check_finite, check_positive
 from .._util import as_float
 from ..materials import LinearElastic
-from ._base import AbstractScene
+from ._base import AbstractScene, check_point
 
 
 class VibratingBar(AbstractScene):
@@ -72,7 +72,11 @@ class VibratingBar(AbstractScene):
 
         Returns:
             ``dict(x, v, F, sigma)`` with ``u = (v0 / omega) sin(omega t) sin(k X)``.
+
+        Raises:
+            ValueError: ``X`` is not of shape ``(1,)``.
         """
+        X = check_point(X, 1)
         k, w = self.k, self.omega
         amp = self.v0 / w * jnp.sin(w * t)
         u = amp * jnp.sin(k * X)
