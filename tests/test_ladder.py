@@ -409,3 +409,44 @@ def test_long_run_refuses_a_scene_it_cannot_record(tmp_path):
     with pytest.raises(ValueError, match="displacement_fn of manufactured is not one"):
         jm.long_run.run(sc, jm.CPDI(), dt=1e-3, steps=3, chunk=2, out=tmp_path / "x.npz", progress=False)
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_stability_tables_mark_a_silent_non_finite_run():
+    """A run that finished with status 0 yet a NaN error is marked `silent NaN` in the map, the stiff
+    tube's and the detonation's tables (the map raised "min() arg is an empty sequence" and wrote
+    nothing; the other two printed `nan (inaccurate)`)."""
+    from jaxmpm.studies import stability
+
+    label = "expand to F=2"
+    base = dict(method="SPQ", artificial_cells=0, label=label, status=0, fail_step=-1, fail_particle=-1)
+    rows = [dict(base, cfl=c, F_max_rel=1e-3, finite=True) for c in stability.CFLS]
+    rows[2]["F_max_rel"] = float("nan")
+    for r in rows:
+        r["verdict"] = stability.classify(r)
+    assert [r["verdict"] for r in rows].count(stability.SILENT) == 1
+    table = stability.markdown(rows, [label])
+    assert f"| {label} | 1e-03 | 1e-03 | silent NaN | 1e-03 | 1e-03 |" in table
+    shock = [dict(base, cfl=c, L1_rel=0.01, verdict="accurate") for c in stability.CFLS]
+    shock[1].update(L1_rel=float("nan"), verdict=stability.SILENT)
+    assert "| SPQ | 1e-02 | silent NaN | 1e-02 | 1e-02 | 1e-02 |" in stability.shock_markdown(shock)
+    det = [dict(base, cfl=c, F_rms_rel=0.01, verdict="accurate") for c in stability.CFLS]
+    det[0].update(F_rms_rel=float("nan"), verdict=stability.SILENT)
+    assert "silent NaN" in stability.detonation_markdown(det)
+    assert "nan" not in stability.detonation_markdown(det).replace("silent NaN", "")
+
+
+def test_study_tables_say_why_a_value_is_missing():
+    """A finished run without a measure is "not measured", not "broken down" (the detonation's goals);
+    a run that broke down shows "-" for its errors in the work-precision table, not "nan"."""
+    from jaxmpm.studies import detonation, work_precision
+
+    row = dict(interpolator="cpdi", artificial_cells=1, ppc=1, F_max_rel=None, plateau_p=None)
+    finished = detonation.goals([dict(row, failure=None, status="ok")])
+    broken = detonation.goals([dict(row, failure={"step": 9}, status="broke down at step 9")])
+    assert [g["missing"] for g in finished] == ["not measured", "not measured"]
+    assert [g["missing"] for g in broken] == ["broken down", "broken down"]
+    assert not any(g["met"] for g in finished + broken)
+    r = dict(method="SPQ", cells=16, particles=32, steps=7, x_rms_abs=float("nan"), F_rms_rel=float("nan"))
+    r.update(wall_s=1e-3, compile_s=1.0, status="broke down at step 8: F <= 0")
+    line = work_precision.markdown([r]).splitlines()[-1]
+    assert line == "| SPQ | 16 | 32 | 7 | - | - | 1.00 | 1.00 | broke down at step 8: F <= 0 |"

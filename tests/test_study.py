@@ -4,6 +4,7 @@ import csv
 
 import pytest
 
+import jaxmpm as jm
 from jaxmpm.cli import main
 from jaxmpm.studies._methods import METHODS
 
@@ -157,3 +158,30 @@ def test_multid_first_steps_report_a_breakdown_in_the_table(monkeypatch):
     assert len(lines) == 4 + len(rows)
     assert "| 2 | spq | 0 | broke down at step 1: time step beyond the stable limit" in lines[4]
     assert all(line.endswith("| - | - |") for line in lines[4:])
+
+
+def test_multid_blast_gap_figure_names_a_breakdown(monkeypatch, tmp_path):
+    """The blast's corner-gap curves of a run that broke down stop at its last good frame, and their
+    legend says at which step it broke down (it named only the method)."""
+    from jaxmpm.studies import multid
+
+    blast = jm.Blast
+    monkeypatch.setattr(jm, "Blast", lambda **kw: blast(**{**kw, "P0": 1e7}))  # a 100:1 charge breaks
+    b = multid.blast(60, 10, cells=4)
+    steps = {name: b[name]["failure"]["step"] for name in ("cpdi", "mpq")}
+    legends = {}
+
+    def save(fig, path):
+        for ax in fig.axes:
+            if ax.get_legend() is not None:
+                legends[path.name] = [t.get_text() for t in ax.get_legend().get_texts()]
+        return path
+
+    monkeypatch.setattr(multid, "_save", save)
+    aligned = [dict(interpolator="mpq", cells=8, failure=None, x_rms_abs=1e-3, order_fit=float("nan"))]
+    multid._figures(dict(blast=b, axis_aligned_2d=aligned), tmp_path)
+    assert legends["blast_gap.png"] == [
+        f"CPDI: its own domains (broke down at step {steps['cpdi']})",
+        f"MPQ: its own domains (broke down at step {steps['mpq']})",
+        f"MPQ: parallelograms from x, F (broke down at step {steps['mpq']})",
+    ]

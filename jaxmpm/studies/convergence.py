@@ -661,8 +661,8 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
         "# Shocks: observed orders of convergence\n\n"
         "L1 errors at the end time of density, velocity, pressure and specific internal energy against "
         "the exact solution, at the particles' positions (`jaxmpm.metrics.euler_errors`). Order: "
-        "least-squares slope over the resolutions that finished (in brackets: the finest pair, - where "
-        "one of its runs broke down). Ideal "
+        "least-squares slope over the resolutions that finished with a non-zero error (in brackets: the "
+        "finest pair, - where one of its runs broke down or has an error of exactly 0). Ideal "
         "gas with the energy equation, artificial viscosity (c_quad 2, c_lin 0.2), 2 particles per "
         f"cell, {', '.join(used)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
         "the total (kinetic plus internal) energy's relative change at the finest resolution. The "
@@ -729,8 +729,8 @@ def write_ladder(outdir: pathlib.Path, rows: list[dict], all_cases: list) -> dic
     head = (
         "# Observed orders of convergence\n\n"
         "RMS errors over real particles at the end time: x (absolute), F (relative), v (absolute). "
-        "Order: least-squares slope over the resolutions that finished (in brackets: the finest pair, - "
-        "where one of its runs broke down). "
+        "Order: least-squares slope over the resolutions that finished with a non-zero error (in "
+        "brackets: the finest pair, - where one of its runs broke down or has an error of exactly 0). "
         "USL, no artificial cells unless stated, float64, dt = CFL h / max(c + |v|) every step.\n\n"
     )
     text = head + markdown(order_rows, all_cases)

@@ -549,8 +549,10 @@ def goals(table1: list[dict]) -> list[dict]:
         table1: the rows of ``by_interpolator``.
 
     Returns:
-        One entry per goal and run: ``goal``, ``interpolator``, ``ppc``, ``value`` and ``met`` (``False``
-        for a run that broke down).
+        One entry per goal and run: ``goal``, ``interpolator``, ``ppc``, ``value``, ``met`` (``False``
+        where there is no value) and ``missing``: why ``value`` is ``None`` (``"broken down"``, or
+        ``"not measured"`` for a run that finished without that measure: no wall plateau, a non-finite
+        error), ``None`` where there is a value.
     """
     out = []
     for r in table1:
@@ -563,7 +565,11 @@ def goals(table1: list[dict]) -> list[dict]:
             if value is not None and key == "plateau_p":
                 value = abs(value - 1.0)
             met = value is not None and value < GOAL
-            out.append(dict(goal=goal, interpolator=r["interpolator"], ppc=r["ppc"], value=value, met=met))
+            missing = None
+            if value is None:
+                missing = "broken down" if r["failure"] is not None else "not measured"
+            row = dict(goal=goal, interpolator=r["interpolator"], ppc=r["ppc"], value=value, met=met)
+            out.append(dict(row, missing=missing))
     return out
 
 
@@ -619,7 +625,7 @@ def _markdown(result: dict) -> str:
         ]
     lines += ["", "Goals (CPDI and MPQ with one artificial cell, 400 particles per 10 cm):", ""]
     for g in result["goals"]:
-        value = "broken down" if g["value"] is None else _pct(g["value"])
+        value = g["missing"] if g["value"] is None else _pct(g["value"])
         lines.append(
             f"- {g['interpolator']}, ppc = {g['ppc']}: {g['goal']}: {value}, "
             f"**{'met' if g['met'] else 'not met'}**"

@@ -112,7 +112,7 @@ def axis_aligned(dim: int, cells_list, names=("spq", "gimp", "cpdi", "mpq")) -> 
             )
         h = 1.0 / np.asarray(cells_list, dtype=float)
         e = np.asarray(errs)
-        ok = np.isfinite(e)
+        ok = np.isfinite(e) & (e > 0)  # a run that broke down (NaN) or an error of exactly 0: no log
         order = float(np.polyfit(np.log(1 / h[ok]), np.log(e[ok]), 1)[0]) if ok.sum() >= 2 else float("nan")
         finest = float(np.log(e[-2] / e[-1]) / np.log(h[-2] / h[-1])) if ok[-2:].all() else float("nan")
         for r in rows:
@@ -261,11 +261,19 @@ def _figures(result: dict, outdir: pathlib.Path) -> list[pathlib.Path]:
 
     fig = figure(figsize=(6.5, 4))
     ax = fig.subplots()
+
+    def broke(name):  # the curves of a run that broke down stop at its last good frame: say so
+        failure = b[name]["failure"]
+        return "" if failure is None else f" (broke down at step {failure['step']})"
+
     for name, style in (("cpdi", "-"), ("mpq", "--")):
         t = np.asarray(b[name]["t"]) * 1e3
-        ax.plot(t, b[name]["gap_own"], style, label=f"{name.upper()}: its own domains")
+        ax.plot(t, b[name]["gap_own"], style, label=f"{name.upper()}: its own domains{broke(name)}")
     ax.plot(
-        np.asarray(b["mpq"]["t"]) * 1e3, b["mpq"]["gap_implied"], ":", label="MPQ: parallelograms from x, F"
+        np.asarray(b["mpq"]["t"]) * 1e3,
+        b["mpq"]["gap_implied"],
+        ":",
+        label=f"MPQ: parallelograms from x, F{broke('mpq')}",
     )
     ax.set_xlabel("t (ms)")
     ax.set_ylabel("largest corner gap / r0")

@@ -187,6 +187,11 @@ def sweep(method: str, artificial_cells: int, members: list[dict]) -> list[dict]
     return results
 
 
+SILENT = "SILENT NON-FINITE"
+"""The verdict of a run that finished without a status yet with a non-finite state or error (never
+expected: every step checks its state), marked ``silent NaN`` in the tables and red in the figure."""
+
+
 def classify(r: dict) -> str:
     """The verdict on one run.
 
@@ -202,16 +207,25 @@ def classify(r: dict) -> str:
         who = f"particle {r['fail_particle']}" if r["fail_particle"] >= 0 else "the run"
         return f"broken at step {r['fail_step']} on {who}: {what}"
     if not r["finite"] or not np.isfinite(r["F_max_rel"]):  # would be a silent NaN: never expected
-        return "SILENT NON-FINITE"
+        return SILENT
     return "accurate" if r["F_max_rel"] <= TOL else "inaccurate"
 
 
+def _marked(r: dict) -> str | None:
+    """A cell that is no measurement: a broken run's failure, or ``silent NaN`` (``None`` otherwise)."""
+    if r["status"]:
+        return _failure(r)
+    if r["verdict"] == SILENT:
+        return "silent NaN"
+    return None
+
+
 def _code(r: dict) -> str:
+    if (mark := _marked(r)) is not None:
+        return mark
     if r["verdict"] == "accurate":
         return f"{r['F_max_rel']:.0e}"
-    if r["verdict"] == "inaccurate":
-        return f"{r['F_max_rel']:.0e}" if r["F_max_rel"] < 10 else ">10"
-    return _failure(r)
+    return f"{r['F_max_rel']:.0e}" if r["F_max_rel"] < 10 else ">10"  # inaccurate
 
 
 def figure(results: list[dict], labels: list[str], path: pathlib.Path) -> None:
@@ -347,7 +361,7 @@ def shock_sweep(method: str, small: bool = False) -> list[dict]:
                 r[f"{k}_L1_rel"] = float(err[f"{k}_L1"]) / norm
             r["L1_rel"] = max(r[f"{k}_L1_rel"] for k in norms)
             if not np.isfinite(r["L1_rel"]):  # would be a silent NaN: never expected
-                r["verdict"] = "SILENT NON-FINITE"
+                r["verdict"] = SILENT
             else:
                 r["verdict"] = "accurate" if r["L1_rel"] <= STIFF_TOL else "inaccurate"
         out.append(r)
@@ -366,9 +380,9 @@ def shock_markdown(results: list[dict]) -> str:
     """
 
     def code(r):
-        if not r["status"]:
-            return f"{r['L1_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
-        return _failure(r)
+        if (mark := _marked(r)) is not None:
+            return mark
+        return f"{r['L1_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
 
     lines = ["| method | " + " | ".join(f"CFL {c:g}" for c in CFLS) + " |", "|---|" + "---|" * len(CFLS)]
     for method in dict.fromkeys(r["method"] for r in results):
@@ -520,7 +534,7 @@ def detonation_sweep(method: str, small: bool = False, artificial_cells=(0, 1), 
             )
             finite = all(bool(jnp.all(jnp.isfinite(a))) for a in (st.x, st.v, st.F, st.sigma))
             if not (finite and np.isfinite(r["F_rms_rel"])):  # would be a silent NaN: never expected
-                r["verdict"] = "SILENT NON-FINITE"
+                r["verdict"] = SILENT
             else:
                 r["verdict"] = "accurate" if r["F_rms_rel"] <= DETONATION_TOL else "inaccurate"
             out.append(r)
@@ -540,9 +554,9 @@ def detonation_markdown(results: list[dict]) -> str:
     """
 
     def code(r):
-        if not r["status"]:
-            return f"{r['F_rms_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
-        return _failure(r)
+        if (mark := _marked(r)) is not None:
+            return mark
+        return f"{r['F_rms_rel']:.0e}" + ("" if r["verdict"] == "accurate" else " (inaccurate)")
 
     cfls = list(dict.fromkeys(r["cfl"] for r in results))
     lines = [

@@ -92,9 +92,11 @@ def markdown(rows: list[dict]) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
+        ok = r["status"] == "ok"  # a run that broke down has no errors to show: its status says why
+        x_err, F_err = (f"{r[k]:.3e}" if ok else "-" for k in ("x_rms_abs", "F_rms_rel"))
         lines.append(
-            f"| {r['method']} | {r['cells']} | {r['particles']} | {r['steps']} | {r['x_rms_abs']:.3e} | "
-            f"{r['F_rms_rel']:.3e} | {1e3 * r['wall_s']:.2f} | {r['compile_s']:.2f} | {r['status']} |"
+            f"| {r['method']} | {r['cells']} | {r['particles']} | {r['steps']} | {x_err} | "
+            f"{F_err} | {1e3 * r['wall_s']:.2f} | {r['compile_s']:.2f} | {r['status']} |"
         )
     return "\n".join(lines) + "\n"
 
