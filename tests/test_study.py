@@ -2,6 +2,7 @@
 
 import csv
 
+import numpy as np
 import pytest
 
 import jaxmpm as jm
@@ -84,6 +85,7 @@ def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
             values=values,
             error=1e-3 * values,
             derivative=1e-6 * (values - 100.0),
+            status=np.zeros(3, dtype=np.int32),
         )
         for name in METHODS
         for ac in (0, 1)
@@ -185,3 +187,21 @@ def test_multid_blast_gap_figure_names_a_breakdown(monkeypatch, tmp_path):
         f"MPQ: its own domains (broke down at step {steps['mpq']})",
         f"MPQ: parallelograms from x, F (broke down at step {steps['mpq']})",
     ]
+
+
+def test_sensitivity_figure_names_the_values_whose_runs_broke_down(monkeypatch, tmp_path):
+    """A run of the sensitivity sweep that broke down is a gap in its curve (NaN, never a number), and
+    the legend names its parameter value (the gap was unexplained)."""
+    from jaxmpm.studies import sensitivity
+
+    r = sensitivity.sweep("SPQ", 0, "beta", [200.0, 3e4], cells=4)
+    assert r["status"][0] == 0 and r["status"][1] != 0
+    assert np.isfinite(r["error"][0]) and np.isnan(r["error"][1]) and np.isnan(r["derivative"][1])
+    legends = []
+
+    def save(fig, path, dpi):
+        legends.extend(t.get_text() for t in fig.axes[0].get_legend().get_texts())
+
+    monkeypatch.setattr(sensitivity, "save_figure", save)
+    sensitivity.figure([r], "beta", tmp_path / "f.png", "s")
+    assert legends == ["SPQ (broke down at beta = 30000)"]

@@ -115,6 +115,9 @@ def figure(results: list[dict], param: str, path, unit: str, ordering: str = "us
             continue
         style = dict(color=colours[r["method"]], ls="--" if r["artificial_cells"] else "-", marker="o", ms=3)
         label = r["method"] + (" + AC" if r["artificial_cells"] else "")
+        broke = [f"{v:g}" for v, st in zip(r["values"], r["status"]) if st != 0]
+        if broke:  # a run that broke down is a gap in the curve (NaN): the legend names it
+            label += f" (broke down at {param} = {', '.join(broke)})"
         axes[0].semilogy(r["values"], r["error"], label=label, **style)
         axes[1].plot(r["values"], r["derivative"], label=label, **style)
     axes[0].set_ylabel("RMS relative F error at t = 0.00125 s")
