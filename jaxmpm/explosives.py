@@ -431,9 +431,8 @@ def check_cj_consistency(
             number, or ``rtol`` is not one finite number > 0; or the implied ``D`` (or ``P_CJ``) misses
             the given one by more than ``rtol``, relative: one line with both values and the miss.
     """
-    _check_stateless("products", products)
     given = {"D": D} if P_CJ is None else {"D": D, "P_CJ": P_CJ}
-    _check_one("check_cj_consistency", rho0=rho0, e0=e0, **given)
+    _check_one("check_cj_consistency", **given)  # products, rho0 and e0: cj_state checks them
     check_real("rtol", rtol)
     check_scalar("rtol", rtol)
     check_positive("rtol", rtol)
