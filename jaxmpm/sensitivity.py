@@ -21,8 +21,9 @@ relative to the nodes. ``dt`` is taken at a fixed number of steps, so the final 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import typing
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 
 import equinox as eqx
 import jax
@@ -110,6 +111,11 @@ def check_names(scene: AbstractScene, names) -> None:
         raise ValueError(f"names must be a sequence of parameter names, got the string {names!r}")
     if not isinstance(names, Iterable):
         raise ValueError(f"names must be a sequence of parameter names such as ['beta'], got {brief(names)}")
+    if isinstance(names, Iterator):  # used up by these checks: the run would then name nothing
+        kind = "a generator" if inspect.isgenerator(names) else f"an iterator ({type(names).__name__})"
+        raise ValueError(
+            f"names must be a sequence of parameter names such as ['beta'], got {kind}; give list(names)"
+        )
     static = static_parameters(scene)
     allowed = continuous_parameters(scene)
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]

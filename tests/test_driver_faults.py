@@ -237,6 +237,15 @@ def test_gradient_refuses_names_that_are_not_a_sequence():
         jm.gradient(small(), jm.SPQ(), None, dt=DT, steps=2)
 
 
+def test_gradient_refuses_names_given_as_a_generator():
+    # a generator is used up by the checks: the gradient then named no parameter and returned {}
+    match = r"names must be a sequence of parameter names such as \['beta'\], got a generator"
+    with pytest.raises(ValueError, match=match):
+        objective(small(), jm.SPQ(), (n for n in ["beta"]), dt=DT, steps=2)
+    with pytest.raises((ValueError, TypeError), match="names"):
+        jm.gradient(small(), jm.SPQ(), (n for n in ["beta"]), dt=DT, steps=2)
+
+
 def test_gradient_tells_a_registry_name_how_to_make_the_scene():
     match = (
         r"scene must be a jaxmpm scene object, got the name 'gas-expansion': "
