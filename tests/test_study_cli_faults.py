@@ -167,6 +167,15 @@ def test_a_full_disk_under_jaxmpm_study_is_one_line_naming_the_file(tmp_path, mo
     ), lines
 
 
+def test_a_disk_too_full_for_the_studys_mark_is_a_full_disk(tmp_path, monkeypatch, capsys, ran):
+    monkeypatch.setattr(jaxmpm._files, "open", FullDisk(0), raising=False)
+    out = tmp_path / "talk"
+    assert main(["study", "talk", "--small", "--out", str(out)]) == 74
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines == [f"jaxmpm: error: cannot write --out {out}: No space left on device"]
+    assert ran == [] and list(out.iterdir()) == []
+
+
 def test_the_stability_map_gives_no_error_for_a_run_that_broke_down():
     """SPQ expanding to F = 2 finishes at CFL 0.1 and breaks down at 1.5, as does the strong
     compression: the error of a run that broke down is None (not that of its last good state), and its

@@ -78,8 +78,9 @@ def command(args) -> int:
         UsageError: ``--out`` cannot be written, or holds files that this study does not write
             (unless ``--overwrite``); or the study draws figures and matplotlib is missing. All are
             found before the study starts.
-        CannotWrite: a file of the study cannot be written (a full disk): each is written whole, so
-            the folder keeps, for each file, the previous run's version or the new one.
+        CannotWrite: the folder's mark or a file of the study cannot be written (a full disk): each
+            is written whole, so the folder keeps, for each file, the previous run's version or the
+            new one.
     """
     if args.name not in WITHOUT_FIGURES:
         try:
@@ -137,8 +138,8 @@ def _claim(folder, name: str, outputs, overwrite: bool) -> None:
         )
     try:
         write_whole(mark, lambda f: f.write((name + "\n").encode()))
-    except OSError as e:
-        raise UsageError(f"--out {folder}: cannot write there ({e.strerror or e})") from None
+    except OSError as e:  # the folder took a probe file: a full disk, as for the study's own files
+        raise CannotWrite(f"--out {folder}", e) from None
 
 
 _MARK_FILE = Files(MARK)
