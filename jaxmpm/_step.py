@@ -23,7 +23,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from . import status as st_bits
 from ._checks import (
@@ -934,7 +934,7 @@ def step(
     model: Model,
     setup: Setup,
     state: State,
-    dt: Float[Array, ""] | float,
+    dt: Float[ArrayLike, ""],
     limit: Int[Array, ""] | None = None,
     active: Bool[Array, ""] | None = None,
     t_new: Float[Array, ""] | None = None,
@@ -952,7 +952,7 @@ def step(
         model: the run.
         setup: what it derives once (``setup(model)``).
         state: the state to step from.
-        dt: the time step (> 0): a 0-d array, or a number (taken as ``simulate`` takes it, a 0-d
+        dt: the time step (> 0): a number or a 0-d array, taken as ``simulate`` takes it (as a 0-d
             array of the default float dtype).
         limit: a step from ``state.step >= limit`` is not taken (masking the tail of a fixed-length
             chunk); ``None`` for no limit.
@@ -973,7 +973,7 @@ def step(
     check_dt(dt, ": to step with several values, jax.vmap over step")
     check_belongs(model, setup, state)
     _check_step_options(limit, active, t_new)
-    if not isinstance(dt, jax.Array):  # a Python or NumPy number, as simulate converts it
+    if not isinstance(dt, jax.Array) or dt.dtype != jnp.result_type(float):  # as simulate converts it
         dt = as_float(dt)
     return _compiled_step(model, setup, state, dt, limit, active, t_new)
 

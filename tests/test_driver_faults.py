@@ -76,6 +76,15 @@ def test_step_refuses_a_state_of_another_model(runs):
         jm.step(m2, s2, state, DT)
 
 
+def test_step_takes_a_dt_array_of_another_float_dtype_as_simulate_does(runs):
+    # a float32 dt array in a float64 run failed deep in lax.cond (branch output types differ)
+    m, s, state = runs["m"]
+    ref = jm.step(m, s, state, float(np.float32(DT)))  # the same value in float64
+    for dt in (jax.numpy.asarray(DT, dtype=np.float32), np.float32(DT)):
+        got = jm.step(m, s, state, dt)
+        assert got.t.dtype == np.float64 and got.t == ref.t and np.array_equal(got.x, ref.x)
+
+
 def test_step_refuses_a_setup_of_another_model(runs):
     m, _, state = runs["m"]
     _, s2, state2 = runs["more"]
