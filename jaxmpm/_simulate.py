@@ -93,8 +93,10 @@ class Solution(eqx.Module):
     Attributes:
         state: the final state; after a failure, the last good state (the failing step is not taken).
         body: the reference configuration (``X``, masses, which particles are in boundary cells).
-        ts: times of the saved history, or ``None``. After a failure the saves that follow it repeat
-            the last good state, with its time.
+        ts: times of the saved history, or ``None``. A run to ``t_end`` takes up to ``max_steps``
+            steps, and the saves after the step that reaches ``t_end`` repeat its final state, with
+            its time; after a failure the saves that follow it repeat the last good state, with its
+            time.
         history: saved fields, each with a leading time axis, or ``None``.
     """
 
@@ -413,8 +415,9 @@ def run_scan(
     if not first:  # at trace time: before anything runs
         raise ValueError(
             f"SaveAt(fields={saveat.fields!r}) names no field this run has (C is APIC's, corners "
-            "a CPDI-type interpolator's, e a material's with an energy equation, internal one with "
-            "history variables, x_traction a scene's with tractions): the history would be empty"
+            "an interpolator's that tracks them (MPQ, CPDI2), e a material's with an energy equation, "
+            "internal one with history variables, x_traction a scene's with tractions): the history "
+            "would be empty"
         )
     history = {name: jnp.concatenate([first[name][None], saved[name]]) for name in first}
     if isinstance(dt, ToEnd):

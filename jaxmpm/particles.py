@@ -130,7 +130,8 @@ class State(eqx.Module):
         F: deformation gradients ``(n, dim, dim)``.
         sigma: Cauchy stresses ``(n, dim, dim)``.
         C: APIC affine velocity matrices ``(n, dim, dim)``; ``None`` unless the transfer is APIC.
-        corners: MPQ's tracked domain corners ``(nc, dim)``; ``None`` unless the interpolator is MPQ.
+        corners: the tracked domain corners ``(nc, dim)``; ``None`` unless the interpolator tracks
+            them (``tracks_corners``: MPQ and CPDI2).
         x_traction: material boundary points that carry a traction, ``(k, dim)``, moved with the
             grid velocity; ``None`` when the scene applies no traction.
         status: failure bitmask (see ``jaxmpm.status``); 0 while the run is healthy.
