@@ -65,6 +65,21 @@ def is_real(value) -> bool:
     return any(jnp.issubdtype(dtype, kind) for kind in (jnp.bool_, jnp.integer, jnp.floating))
 
 
+def is_bool(value: object) -> bool:
+    """Whether ``value`` is a bool, a bool array, or a list or tuple holding one (a number given as
+    ``True`` is a mistake, not the number 1).
+
+    Args:
+        value: anything concrete.
+
+    Returns:
+        ``True`` for ``True``, ``np.bool_``, an array of bool dtype, or a list or tuple holding one.
+    """
+    if isinstance(value, (list, tuple)):
+        return any(is_bool(v) for v in value)
+    return isinstance(value, (bool, np.bool_)) or getattr(value, "dtype", None) == np.bool_
+
+
 def check_real(name: str, value) -> None:
     """Check that a concrete value is a real number (or an array of them); a tracer passes.
 
@@ -73,10 +88,10 @@ def check_real(name: str, value) -> None:
         value: its value, as given (before any conversion).
 
     Raises:
-        ValueError: ``value`` is a string, ``None``, a complex number or another non-number:
-            ``"{name} must be a real number, got {value!r}"`` (a long value shortened).
+        ValueError: ``value`` is a string, ``None``, a complex number, a bool (``is_bool``) or another
+            non-number: ``"{name} must be a real number, got {value!r}"`` (a long value shortened).
     """
-    if is_concrete(value) and not is_real(value):
+    if is_concrete(value) and (not is_real(value) or is_bool(value)):
         raise ValueError(f"{name} must be a real number, got {brief(value)}")
 
 

@@ -24,22 +24,14 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Bool, Float, Real
 
-from ._checks import brief, check_finite, check_nonnegative, check_positive, is_real
-
-
-def _is_bool(value: object) -> bool:
-    """Whether ``value`` is a bool, a bool array, or a list or tuple holding one (a coordinate given as
-    ``True`` is a mistake, not the number 1)."""
-    if isinstance(value, (list, tuple)):
-        return any(_is_bool(v) for v in value)
-    return isinstance(value, (bool, np.bool_)) or getattr(value, "dtype", None) == np.bool_
+from ._checks import brief, check_finite, check_nonnegative, check_positive, is_bool, is_real
 
 
 def _vector(name: str) -> Callable[[object], tuple[float, ...]]:
     """A converter of a vector parameter to a tuple of 1 to 3 floats (a scalar is a 1D vector)."""
 
     def convert(value: object) -> tuple[float, ...]:
-        if not is_real(value) or _is_bool(value):
+        if not is_real(value) or is_bool(value):
             raise ValueError(f"{name} must be a real number or a list of 1 to 3 of them, got {brief(value)}")
         arr = np.asarray(value, dtype=np.float64)
         if arr.ndim == 0:
@@ -57,7 +49,7 @@ def _scalar(name: str) -> Callable[[object], float]:
     """A converter of a scalar parameter to a Python float."""
 
     def convert(value: object) -> float:
-        if not is_real(value) or _is_bool(value) or np.ndim(value) != 0:
+        if not is_real(value) or is_bool(value) or np.ndim(value) != 0:
             raise ValueError(f"{name} must be a real number, got {brief(value)}")
         return float(value)
 

@@ -199,6 +199,28 @@ def test_materials_and_viscosity_name_a_parameter_that_is_not_a_number(make, mat
     _one_line(make, match, (ValueError, TypeError))
 
 
+BOOLS = [
+    (lambda: jm.GasExpansion(cells=4, h=True), "h"),
+    (lambda: jm.GasExpansion(cells=4, beta=np.bool_(True)), "beta"),
+    (lambda: jm.AdiabaticGas(P0=True, gamma=1.4, p_atm=0.0), "P0"),
+    (lambda: jm.AdiabaticGas(P0=1.0, gamma=True, p_atm=0.0), "gamma"),
+    (lambda: jm.ArtificialViscosity(c_quad=True), "c_quad"),
+    (lambda: jm.ArtificialViscosity(c_shear=False), "c_shear"),
+    (lambda: jm.LinearElastic(E=jnp.asarray(True)), "E"),
+    (lambda: jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), t_end=True, cfl=0.5, max_steps=30), "t_end"),
+    (lambda: jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), t_end=1e-5, cfl=True, max_steps=30), "cfl"),
+    (lambda: jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), dt=1e-5, steps=1, cfl_limit=True), "cfl_limit"),
+]
+
+
+@pytest.mark.parametrize("make, name", BOOLS, ids=[n for _, n in BOOLS])
+def test_a_bool_is_not_taken_for_a_number(make, name):
+    # True was read as 1.0: h = 1 m, t_end = 1 s (a run that then ran out of max_steps)
+    _one_line(
+        make, rf"^{name} must be a real number, got (np\.)?(True|False|Array\(True)", (ValueError, TypeError)
+    )
+
+
 def test_materials_still_take_numbers_tracers_and_none_where_allowed():
     assert jm.ArtificialViscosity(c_shear=None).c_shear is None
     assert float(jm.ArtificialViscosity(c_shear=0.1).c_shear) == 0.1
