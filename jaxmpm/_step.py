@@ -300,7 +300,7 @@ class Model(eqx.Module):
             )
         if self.volume_average is not None:
             _check_one_material(self.scene)
-        check_float_type(self.scene)
+        check_float_type(self.scene, self.viscosity)
 
 
 def _check_one_material(scene: AbstractScene) -> None:
@@ -324,24 +324,29 @@ def _check_one_material(scene: AbstractScene) -> None:
             )
 
 
-def check_float_type(scene: AbstractScene) -> None:
-    """Refuse a scene whose parameters are of another float type than the run's: one made while
-    float64 was off (float32 arrays) and run after ``jax_enable_x64`` was switched on.
+def check_float_type(scene: AbstractScene, viscosity: ArtificialViscosity | None = None) -> None:
+    """Refuse a scene or viscosity whose parameters are of another float type than the run's: one
+    made while float64 was off (float32 arrays) and run after ``jax_enable_x64`` was switched on.
+
+    Args:
+        scene: the run's scene.
+        viscosity: the run's artificial viscosity, or ``None``.
 
     Raises:
-        ValueError: a float parameter of the scene (its materials' too) is not of the default float
-            type, naming it and what to do.
+        ValueError: a float parameter of the scene (its materials' too) or of the viscosity is not
+            of the default float type, naming it and what to do.
     """
     want = jnp.result_type(float)
-    for path, leaf in jax.tree_util.tree_leaves_with_path(eqx.filter(scene, eqx.is_array)):
-        dtype = getattr(leaf, "dtype", None)
-        if dtype is not None and jnp.issubdtype(dtype, jnp.floating) and dtype != want:
-            name = jax.tree_util.keystr(path).lstrip(".")
-            raise ValueError(
-                f"the scene's {name} is {dtype} and this run is {want} (jax_enable_x64 is "
-                f"{'on' if want == jnp.float64 else 'off'}): make the scene after switching float64 on or "
-                f"off, jax.config.update('jax_enable_x64', ...), not before"
-            )
+    for what, module in (("scene", scene), ("viscosity", viscosity)):
+        for path, leaf in jax.tree_util.tree_leaves_with_path(eqx.filter(module, eqx.is_array)):
+            dtype = getattr(leaf, "dtype", None)
+            if dtype is not None and jnp.issubdtype(dtype, jnp.floating) and dtype != want:
+                name = jax.tree_util.keystr(path).lstrip(".")
+                raise ValueError(
+                    f"the {what}'s {name} is {dtype} and this run is {want} (jax_enable_x64 is "
+                    f"{'on' if want == jnp.float64 else 'off'}): make the {what} after switching float64 "
+                    f"on or off, jax.config.update('jax_enable_x64', ...), not before"
+                )
 
 
 class Setup(eqx.Module):

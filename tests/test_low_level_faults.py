@@ -232,6 +232,18 @@ def test_a_scene_of_another_float_type_is_refused_by_name():
     assert int(jm.simulate(scene, jm.MPQ(), dt=DT, steps=1).state.step) == 1
 
 
+def test_a_viscosity_of_another_float_type_is_refused_by_name():
+    import equinox as eqx
+
+    visc = jm.ArtificialViscosity()
+    old = eqx.tree_at(lambda v: v.c_quad, visc, jnp.asarray(1.5, dtype=jnp.float32))
+    match = r"the viscosity's c_quad is float32 and this run is float64 \(jax_enable_x64 is on\)"
+    with pytest.raises(ValueError, match=match):
+        jm.simulate(jm.GasExpansion(cells=4), jm.SPQ(), dt=DT, steps=1, viscosity=old)
+    with pytest.raises(ValueError, match=match):
+        jm.Model(jm.GasExpansion(cells=4), jm.SPQ(), jm.FLIP(), viscosity=old)
+
+
 def test_a_bool_is_not_a_time_step_and_a_string_not_devices():
     """``dt=True`` ran as 1.0; ``devices="cpu"`` was reported as the letters ('c', 'p', 'u')."""
     scene = jm.GasExpansion(cells=4)
