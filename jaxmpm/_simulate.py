@@ -503,13 +503,22 @@ def failure_message(sol: Solution, dt: float | None) -> str:
     )
 
 
-def _finish(sol: Solution, dt, throw: bool) -> Solution:
+def _finish(sol: Solution, dt, throw: bool, model: Model) -> Solution:
     if not throw:  # (simulate checks that throw is a bool before the run)
         return sol
     if is_concrete(sol.state.status) and (dt is None or is_concrete(dt)):
         if int(sol.state.status) != 0:
             raise SimulationError(failure_message(sol, None if dt is None else float(dt)), sol)
         return sol
+    if model.devices is not None and len(model.devices) > 1:
+        # eqx.error_if raises on one device while the others wait for it in the step's all-reduce:
+        # the process would abort (a rendezvous timeout), with nothing to catch
+        raise ValueError(
+            "a run over several devices cannot raise its breakdown from inside jax.jit or jax.vmap (the "
+            "device that finds it would stop while the others wait for it, and the process would abort): "
+            "pass throw=False and read Solution.state.status or Solution.failure(), or call simulate "
+            "outside the transformation"
+        )
     return eqx.error_if(
         sol,
         sol.state.status != 0,
@@ -654,9 +663,11 @@ def simulate(
         volume_average: ``None`` (default), ``"cell"`` or ``"node"``: the stress at the volume-averaged
             ``F`` (J-bar, ``jaxmpm.Model``); refused for regions of different materials.
         devices: ``None`` (default: one device), a count ``k`` (the first ``k`` of ``jax.devices()``)
-            or a sequence of devices: the particles are sharded over them, the grid replicated and
-            its sums added across them each step. Equal to the run on one device to round-off.
+            or a sequence of devices: the particles are sharded over them (they must split evenly),
+            the grid replicated and its sums added across them each step. Equal to the run on one
+            device to round-off.
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
+            A run over several devices inside ``jax.jit`` or ``jax.vmap`` needs ``False``.
 
     Returns:
         The ``Solution``.
@@ -664,8 +675,9 @@ def simulate(
     Raises:
         ValueError: bad input, before anything is traced: among others a scene class for a scene
             object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, a ``checkpoint`` that is
-            not ``True``, ``False`` or an integer >= 1, or a ``saveat`` that names no field the run
-            has (``C`` of a FLIP run).
+            not ``True``, ``False`` or an integer >= 1, a ``saveat`` that names no field the run
+            has (``C`` of a FLIP run), ``devices`` the particles do not split evenly over, or
+            several devices with ``throw=True`` inside ``jax.jit`` or ``jax.vmap``.
         SimulationError: the run broke down; ``error.solution`` holds the last good state.
     """
     model, dt_arr, n, saveat = prepare(
@@ -688,7 +700,7 @@ def simulate(
     )
     _check_throw(throw)
     sol = _run_scan_jit(model, dt_arr, n, saveat, checkpoint_block(checkpoint, n))
-    return _finish(sol, dt, throw)
+    return _finish(sol, dt, throw, model)
 
 
 def _check_throw(throw) -> None:
@@ -726,4 +738,4 @@ def simulate_timed(
     t1 = time.perf_counter()
     sol = jax.block_until_ready(compiled(model, dt_arr, n, saveat, block))
     t2 = time.perf_counter()
-    return _finish(sol, kwargs.get("dt"), throw), t1 - t0, t2 - t1
+    return _finish(sol, kwargs.get("dt"), throw, model), t1 - t0, t2 - t1

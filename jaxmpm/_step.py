@@ -291,6 +291,7 @@ class Model(eqx.Module):
         check_cfl_limit(self.cfl_limit)
         if self.devices is not None:
             check_devices(self.devices)
+            _check_even_split(self)
         if self.ordering not in ORDERINGS:
             raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
         if self.volume_average is not None and self.volume_average not in VOLUME_AVERAGES:
@@ -301,6 +302,23 @@ class Model(eqx.Module):
         if self.volume_average is not None:
             _check_one_material(self.scene)
         check_float_type(self.scene, self.viscosity)
+
+
+def _check_even_split(model: Model) -> None:
+    """Refuse devices that the real particles do not split evenly over: each device holds the same
+    number of them (an uneven split ran unsharded, the whole run on every device)."""
+    k = len(model.devices)
+    if k == 1:
+        return
+    n = jax.eval_shape(lambda m: setup(m).body.X, model).shape[0]
+    if n % k:
+        here = len(jax.devices())
+        counts = [c for c in range(1, here + 1) if n % c == 0]
+        raise ValueError(
+            f"devices: the {n} particles of {model.scene.name} do not split evenly over {k} devices (each "
+            f"device holds the same number of them); device counts that divide {n} (of the {here} here): "
+            f"{', '.join(map(str, counts))}"
+        )
 
 
 def _check_one_material(scene: AbstractScene) -> None:
