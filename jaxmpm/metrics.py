@@ -9,14 +9,18 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from ._checks import (
+    any_traced,
     brief,
     check_bool,
     check_finite,
     check_int,
     check_nonnegative,
     check_scalar,
+    is_bool,
     is_concrete,
+    is_real,
     python_int,
+    show,
 )
 from ._util import adjugate, corner_signs, det
 from .materials import DEVIATORIC_KEYS, AbstractEOS
@@ -269,7 +273,8 @@ def _sq_abs(a, b, n):
 
 
 def _max_rms(sq, mask=None):
-    """``(max, rms)`` of ``sqrt(sq)`` over the particles in ``mask`` (all if ``None``)."""
+    """``(max, rms)`` of ``sqrt(sq)`` over the particles in ``mask`` (all if ``None``); both 0 for a
+    mask that selects no particle."""
     if mask is None:
         return _safe_sqrt(jnp.max(sq)), _safe_sqrt(jnp.mean(sq))
     count = jnp.sum(mask).astype(sq.dtype)
@@ -392,8 +397,11 @@ def errors(
 
     ``F_*_rel`` are relative errors ``|F - F_exact| / |F_exact|``, also split into particles seeded
     in the boundary cells (first and last cell of the body) and the interior. ``x``, ``v`` and
-    ``sigma`` errors are absolute. Errors are ``None`` for a scene with no exact solution, and the
-    interior ones are ``None`` when the body has no interior cell. ``separation_max`` is always set:
+    ``sigma`` errors are absolute. Errors are ``None`` for a scene with no exact solution, and those
+    of the boundary cells (the interior) are ``None`` when no particle measured is in them: the body
+    has no interior cell, or ``where`` leaves none of the group. A ``where`` traced (under ``jit``)
+    cannot be read, and a group it leaves empty then measures 0 (a max and an RMS over no particle),
+    never NaN. ``separation_max`` is always set:
     in 1D the largest ``|separation|``, in 2D and 3D the largest ``corner_gap`` of the domains that
     ``x`` and ``F`` imply.
 
@@ -431,16 +439,26 @@ def errors(
     _check_body(body)
     _check_run(scene, state, body, "errors()")
     where = _check_where(where, body)
-    b = body.boundary
-    has_interior = isinstance(b, jax.core.Tracer) or not bool(np.all(np.asarray(b)))
+    has_boundary, has_interior = _groups(body.boundary, where)
     exact = scene.exact is not None and exact_holds(scene, state.t)
     ex = _exact_fields(scene, body.X, state.t) if exact else None
     fields = (state.x, state.v, state.F, state.sigma)
-    return _errors(fields, ex, body, where, has_interior)
+    return _errors(fields, ex, body, where, has_boundary, has_interior)
+
+
+def _groups(boundary, where) -> tuple[bool, bool]:
+    """Whether the particles measured (``where``, or all for ``None``) include any of the boundary
+    cells and any of the interior: ``(has_boundary, has_interior)``. Where ``boundary`` or ``where``
+    is a tracer this cannot be read, and both are ``True`` (an empty group then measures 0)."""
+    if not (is_concrete(boundary) and is_concrete(where)):
+        return True, True
+    b = np.asarray(boundary, dtype=bool)
+    w = np.ones_like(b) if where is None else np.asarray(where, dtype=bool)
+    return bool(np.any(b & w)), bool(np.any(~b & w))
 
 
 @eqx.filter_jit
-def _errors(fields, ex, body, where, has_interior: bool):
+def _errors(fields, ex, body, where, has_boundary: bool, has_interior: bool):
     # One compiled program for each shape of the fields it reads (whatever the interpolator and
     # transfer), the exact solution apart (its own program for each scene). Op by op, a call on a new
     # particle count would compile each of its ~27 operations.
@@ -461,7 +479,10 @@ def _errors(fields, ex, body, where, has_interior: bool):
     and_w = (lambda m: m) if w is None else (lambda m: m & w)
     out["F_max_rel"], out["F_rms_rel"] = _max_rms(F_sq, w)
     b = body.boundary
-    out["F_max_rel_boundary"], out["F_rms_rel_boundary"] = _max_rms(F_sq, and_w(b))
+    if has_boundary:
+        out["F_max_rel_boundary"], out["F_rms_rel_boundary"] = _max_rms(F_sq, and_w(b))
+    else:
+        out["F_max_rel_boundary"] = out["F_rms_rel_boundary"] = None
     if has_interior:
         out["F_max_rel_interior"], out["F_rms_rel_interior"] = _max_rms(F_sq, and_w(~b))
     else:
@@ -755,6 +776,15 @@ def _check_corners(corners, body: Body) -> None:
 
 
 def _centre(centre, like):
+    """``centre`` as a ``(1, dim)`` array of ``like``'s dtype, checked where concrete: ``dim`` finite
+    real numbers (one per axis of ``like``, whose last axis is the dimension)."""
+    if not any_traced(centre):
+        d = like.shape[-1]
+        what = f"centre must be {d} finite real number{'s' if d > 1 else ''} (one per axis)"
+        if not is_real(centre) or is_bool(centre):
+            raise ValueError(f"{what}, got {brief(centre)}")
+        if np.shape(centre) == like.shape[-1:] and not np.all(np.isfinite(np.asarray(centre))):
+            raise ValueError(f"{what}, got {show(np.asarray(centre))}")
     c = jnp.asarray(centre, dtype=like.dtype)
     if c.shape != like.shape[-1:]:
         raise ValueError(f"centre must have {like.shape[-1]} components (the dimension), got shape {c.shape}")
