@@ -3,12 +3,50 @@
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, ArrayLike, Float, Int
 
-from ._checks import check_int, check_positive
+from ._checks import any_traced, brief, check_int, check_positive, is_bool, is_real, python_int, show
 from ._util import lattice
+
+_X_MIN = "x_min must be the position of node 0, 1 to 3 finite real numbers (one per axis)"
+_H = "h must be the node spacing, one finite number > 0 (not a bool)"
+
+
+def _as_array(value):
+    """A position or spacing as given (a list, a Python or NumPy number, an array of real numbers) as
+    an array: a floating array as it is, anything else real in the default float dtype. A value that
+    is not real numbers, or is bools, is left unchanged for ``Grid``'s check to name; a tracer too."""
+    if any_traced(value):
+        return value if isinstance(value, jax.Array) else jnp.asarray(value)
+    if isinstance(value, jax.Array) and jnp.issubdtype(value.dtype, jnp.floating):
+        return value
+    if not is_real(value) or is_bool(value):
+        return value
+    arr = np.asarray(value)
+    return jnp.asarray(arr, dtype=arr.dtype if np.issubdtype(arr.dtype, np.floating) else float)
+
+
+def _check_x_min(x_min) -> None:
+    """``x_min`` is 1 to 3 finite real numbers, not bools (its shape is checked under a trace too)."""
+    if not any_traced(x_min) and (not is_real(x_min) or is_bool(x_min)):
+        raise ValueError(f"{_X_MIN}, got {brief(x_min)}")
+    if np.ndim(x_min) != 1 or not 1 <= np.shape(x_min)[0] <= 3:
+        raise ValueError(f"{_X_MIN}, got an array of shape {np.shape(x_min)}")
+    if not any_traced(x_min) and not np.all(np.isfinite(np.asarray(x_min))):
+        raise ValueError(f"{_X_MIN}, got {show(np.asarray(x_min))}")
+
+
+def _check_h(h) -> None:
+    """``h`` is one finite number > 0, not a bool (its shape is checked under a trace too)."""
+    if not any_traced(h) and (not is_real(h) or is_bool(h)):
+        raise ValueError(f"{_H}, got {brief(h)}")
+    if np.ndim(h) != 0:
+        raise ValueError(f"{_H}, got an array of shape {np.shape(h)}")
+    check_positive("h", h)
 
 
 class Grid(eqx.Module):
@@ -18,31 +56,44 @@ class Grid(eqx.Module):
     are ``(n_nodes, ...)`` arrays in that order. ``x_min`` and ``h`` are arrays, so a gradient reaches
     the grid spacing; the node counts are structural (static).
 
+    ``x_min`` and ``h`` may be given as a list or a Python or NumPy number: they are stored as arrays
+    (a floating array keeps its dtype; anything else takes the default float dtype). Bools are refused.
+
     Attributes:
-        x_min: position of node 0, shape ``(dim,)``.
-        h: node spacing, > 0 (a scalar array; the same along every axis).
+        x_min: position of node 0, shape ``(dim,)``: 1 to 3 finite real numbers.
+        h: node spacing, one finite number > 0 (a scalar array; the same along every axis).
         n_nodes: total number of nodes, >= 2 (static).
-        shape: nodes along each axis, each >= 2 (static); ``None`` for a 1D grid of ``n_nodes`` nodes.
+        shape: nodes along each axis, each >= 2 (static); ``None`` for a 1D grid of ``n_nodes`` nodes
+            (then ``x_min`` has one entry).
     """
 
-    x_min: Float[Array, " dim"]
-    h: Float[Array, ""]
+    x_min: Float[Array, " dim"] = eqx.field(converter=_as_array)
+    h: Float[Array, ""] = eqx.field(converter=_as_array)
     n_nodes: int = eqx.field(static=True)
     shape: tuple[int, ...] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
-        """Check the node counts and the spacing (a traced ``h``, as inside a run, is not checked).
+        """Check the node counts, the position and the spacing. Under a trace (a grid built inside
+        ``jax.jit`` or ``jax.grad``, as inside a run) only the shapes of ``x_min`` and ``h`` are.
 
         Raises:
             ValueError: ``n_nodes`` or an entry of ``shape`` is not an integer >= 2 (a grid has at
-                least one cell along each axis); ``h`` is not finite and > 0; ``shape`` does not
-                match ``x_min`` and ``n_nodes``.
+                least one cell along each axis); ``x_min`` is not 1 to 3 finite real numbers (one
+                per axis); ``h`` is not one finite number > 0 (a bool is refused); ``shape`` is
+                ``None`` and ``x_min`` has more than one entry; ``shape`` does not match ``x_min``
+                and ``n_nodes``.
         """
         check_int("n_nodes", self.n_nodes, 2)
         if self.shape is not None:
             for a, n in enumerate(self.shape):
                 check_int(f"shape[{a}]", n, 2)
-        check_positive("h", self.h)
+        _check_x_min(self.x_min)
+        _check_h(self.h)
+        if self.shape is None and np.shape(self.x_min)[0] != 1:
+            raise ValueError(
+                f"a Grid without shape is 1D: x_min must have 1 entry, got {np.shape(self.x_min)[0]} "
+                "(Grid.box builds a 2D or 3D grid)"
+            )
         if self.shape is not None and (
             len(self.shape) != self.x_min.shape[0] or math.prod(self.shape) != self.n_nodes
         ):
@@ -52,18 +103,35 @@ class Grid(eqx.Module):
             )
 
     @classmethod
-    def box(cls, x_min: Float[Array, " dim"], h: Float[Array, ""], shape: tuple[int, ...]) -> "Grid":
+    def box(cls, x_min: Float[ArrayLike, " dim"], h: Float[ArrayLike, ""], shape: tuple[int, ...]) -> "Grid":
         """A grid of ``shape[a]`` nodes along axis ``a``.
 
         Args:
-            x_min: position of node 0.
-            h: node spacing.
-            shape: nodes along each axis (length ``dim``).
+            x_min: position of node 0: 1 to 3 finite real numbers, one per axis (an array or a list).
+            h: node spacing: one finite number > 0 (an array or a Python or NumPy number; not a bool).
+            shape: nodes along each axis: a tuple (or list) of integers >= 2, one per entry of
+                ``x_min``.
 
         Returns:
             The ``Grid``.
+
+        Raises:
+            ValueError: ``shape`` is not a tuple of integers >= 2 with one per entry of ``x_min``, or
+                ``x_min`` or ``h`` is not as above (``Grid``'s checks).
         """
-        shape = tuple(int(s) for s in shape)
+        if not isinstance(shape, (tuple, list)):
+            raise ValueError(
+                f"shape must be a tuple of node counts, one per axis of x_min, got {brief(shape)}"
+            )
+        shape = tuple(python_int(s) for s in shape)
+        for a, n in enumerate(shape):
+            check_int(f"shape[{a}]", n, 2)
+        x_min = _as_array(x_min)
+        _check_x_min(x_min)
+        if len(shape) != np.shape(x_min)[0]:
+            raise ValueError(
+                f"shape must give one node count per axis of x_min ({np.shape(x_min)[0]}), got {shape}"
+            )
         return cls(x_min=x_min, h=h, n_nodes=math.prod(shape), shape=None if len(shape) == 1 else shape)
 
     @property
