@@ -83,7 +83,26 @@ def _target(path, overwrite) -> tuple[pathlib.Path, str]:  # overwrite: checked 
 def _check_panels(name: str, value, shape: str) -> None:
     """Refuse ``value`` unless it is a non-empty dict (of ``shape``, for the message)."""
     if not isinstance(value, Mapping) or not value:
-        raise ValueError(f"{name} must be a non-empty dict {shape}, got {brief(value)}")
+        raise ValueError(f"{name} must be a non-empty dict {shape}, got {_show(value)}")
+
+
+def _show(value) -> str:
+    """``brief(value)`` on one line (the repr of an array may span several)."""
+    return " ".join(brief(value).split())
+
+
+def _check_curves(where: str, curves, entries: tuple[str, ...]) -> None:
+    """Refuse ``curves`` (a panel's, named ``where``) unless it is a list or tuple of curves, each a
+    tuple or list of ``len(entries)`` values (``entries`` names them, for the message)."""
+    want = f"{where} must be a list of curves ({', '.join(entries)}), got"
+    if not isinstance(curves, (list, tuple)):
+        raise ValueError(f"{want} {_show(curves)}")
+    for curve in curves:
+        if not isinstance(curve, (list, tuple)):
+            raise ValueError(f"{want} a curve {_show(curve)}")
+        if len(curve) != len(entries):
+            first = f" ({_show(curve[0])}, ...)" if curve else ""
+            raise ValueError(f"{want} a curve of {len(curve)} entries{first}")
 
 
 def _save(fig, target: pathlib.Path, fmt: str, dpi: int) -> None:
@@ -105,23 +124,26 @@ def profile_grid(
     """A grid of along-the-bar profiles.
 
     Args:
-        panels: ``{(row_label, col_label): [(label, X, y, style), ...]}``, at least one panel.
+        panels: ``{(row_label, col_label): [(label, X, y, style), ...]}``, at least one panel: each
+            key a tuple of two labels, each curve a tuple of four whose ``style`` is a dict of
+            matplotlib line properties (``{}`` for the defaults). A panel whose list is empty is
+            drawn empty; the legend is that of the first panel, drawn where it has curves.
         ylabel: the y-axis label.
         title: the figure title.
         path: where to write the figure, in the format of its suffix (``.png``, ``.pdf``, ``.svg``,
             ...; without one, PNG and ``.png`` appended, as ``Figure.savefig`` does).
         exact_line: draw a dashed reference line at this y (the manufactured solution).
         overwrite: replace a file already at ``path`` (else it is refused).
-        note: text written under the grid (what is not drawn, and why), or ``None``. A panel
-            whose list is empty is drawn empty.
+        note: text written under the grid (what is not drawn, and why), or ``None``.
 
     Returns:
         The file written.
 
     Raises:
-        ValueError: ``panels`` is not a non-empty dict; ``path`` is not a file name, is a folder
-            or its suffix not a format matplotlib writes; ``overwrite`` is not a bool, or ``note``
-            not a string or ``None``.
+        ValueError: ``panels`` is not a non-empty dict, a key of it is not a tuple of two labels,
+            a panel is not a list of curves of four entries or a curve's style is not a dict;
+            ``path`` is not a file name, is a folder or its suffix not a format matplotlib writes;
+            ``overwrite`` is not a bool, or ``note`` not a string or ``None``.
         FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
         FileNotFoundError: the folder of ``path`` does not exist.
         OSError: the figure cannot be written (a full disk): the file keeps what it held, and the
@@ -131,6 +153,16 @@ def profile_grid(
     if note is not None and not isinstance(note, str):
         raise ValueError(f"note must be a string or None, got {note!r}")
     target, fmt = _target(path, overwrite)
+    for key, curves in panels.items():
+        if not isinstance(key, tuple) or len(key) != 2:
+            raise ValueError(f"a key of panels must be a (row, column) tuple of two labels, got {_show(key)}")
+        _check_curves(f"panels[{_show(key)}]", curves, ("label", "X", "y", "style"))
+        for label, _, _, style in curves:
+            if not isinstance(style, Mapping):
+                raise ValueError(
+                    f"the style of curve {_show(label)} in panels[{_show(key)}] must be a dict of line "
+                    f"properties ({{}} for matplotlib's defaults), got {_show(style)}"
+                )
     rows = list(dict.fromkeys(r for r, _ in panels))
     cols = list(dict.fromkeys(c for _, c in panels))
     fig = figure(figsize=(3.2 * len(cols), 2.8 * len(rows)))
@@ -168,27 +200,33 @@ def time_series(
     """Curves against time, one panel per key of ``series``.
 
     Args:
-        series: ``{panel: [(label, t, y), ...]}``, at least one panel.
+        series: ``{panel: [(label, t, y), ...]}``, at least one panel: each curve a tuple of
+            three. A panel whose list is empty is drawn empty; the legend is that of the first
+            panel, drawn where it has curves.
         ylabel: the y-axis label (of the first panel; the panels share it).
         title: the figure title.
         path: where to write the figure, in the format of its suffix (``.png``, ``.pdf``, ``.svg``,
             ...; without one, PNG and ``.png`` appended, as ``Figure.savefig`` does).
-        logy: a logarithmic y axis.
+        logy: a logarithmic y axis (``True`` or ``False``).
         overwrite: replace a file already at ``path`` (else it is refused).
 
     Returns:
         The file written.
 
     Raises:
-        ValueError: ``series`` is not a non-empty dict; ``path`` is not a file name, is a folder
-            or its suffix not a format matplotlib writes; or ``overwrite`` is not a bool.
+        ValueError: ``series`` is not a non-empty dict or a panel of it not a list of curves of
+            three entries; ``logy`` or ``overwrite`` is not a bool; or ``path`` is not a file name,
+            is a folder or its suffix not a format matplotlib writes.
         FileExistsError: the file exists and ``overwrite`` is ``False`` (found before drawing).
         FileNotFoundError: the folder of ``path`` does not exist.
         OSError: the figure cannot be written (a full disk): the file keeps what it held, and the
             error names it (``filename``).
     """
     _check_panels("series", series, "{panel: [(label, t, y), ...]}")
+    check_bool("logy", logy)
     target, fmt = _target(path, overwrite)
+    for panel, curves in series.items():
+        _check_curves(f"series[{_show(panel)}]", curves, ("label", "t", "y"))
     fig = figure(figsize=(5.0 * len(series), 3.6))
     axes = fig.subplots(1, len(series), sharey=True, squeeze=False)
     for ax, (panel, curves) in zip(axes[0], series.items()):
@@ -200,7 +238,8 @@ def time_series(
         ax.set_xlabel("t (s)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel(ylabel)
-    axes[0][0].legend(fontsize=8)
+    if axes[0][0].get_legend_handles_labels()[0]:
+        axes[0][0].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
     _save(fig, target, fmt, dpi=120)

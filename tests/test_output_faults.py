@@ -152,7 +152,7 @@ ONE_SERIES = {"a": [("x", np.arange(3.0), np.arange(1.0, 4.0))]}
 
 
 def _draw(fn, path, **kwargs):
-    data = ONE_PANEL if fn is plotting.profile_grid else ONE_SERIES
+    data = ONE_PANEL if inspect.unwrap(fn) is inspect.unwrap(plotting.profile_grid) else ONE_SERIES
     return fn(data, ylabel="y", title="t", path=path, **kwargs)
 
 
