@@ -30,8 +30,8 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _memory
 from . import status as st_bits
-from ._checks import any_traced, brief, is_real
-from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan
+from ._checks import any_traced, brief, check_keywords, is_real
+from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan, simulate
 from ._step import check_scene
 from .interpolators import AbstractInterpolator
 from .long_run import computed
@@ -280,9 +280,11 @@ def ensemble(
             parameter does not allow, a member whose values together the scene refuses, named by
             its index), bad run arguments, or more members than the device's memory holds
             (estimated before anything is allocated).
+        TypeError: a keyword ``simulate`` does not take (the message lists those it takes).
         KeyboardInterrupt: Ctrl-C while the members ran (``long_run.computed``: at once under the command
             line): nothing is returned.
     """
+    check_keywords("ensemble", simulate_kwargs, simulate)
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
     if any_traced(scene):
         raise ValueError(

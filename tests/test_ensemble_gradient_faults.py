@@ -76,6 +76,15 @@ def test_an_ensemble_whose_every_member_is_valid_runs_though_an_extreme_is_inval
 # Ensemble.member_scene with run settings varied ----------------------------------------------------
 
 
+def test_an_ensemble_names_a_keyword_it_does_not_take():
+    # Python named the inner function: "prepare() got an unexpected keyword argument 'stepz'"
+    sc = jm.GasExpansion(cells=4)
+    with pytest.raises(
+        TypeError, match=r"^ensemble\(\) got an unexpected keyword argument 'stepz'; it takes "
+    ):
+        jm.ensemble(sc, jm.CPDI(), vary={"beta": [100.0, 200.0]}, dt=DT, stepz=3)
+
+
 @pytest.mark.slow
 def test_member_scene_leaves_out_the_varied_run_settings():
     """``dt`` is a run setting, not a scene parameter: member i's scene holds its scene values, and its
