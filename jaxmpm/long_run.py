@@ -1025,6 +1025,12 @@ def _settings(path: pathlib.Path, meta: dict, on_devices: bool = True):
     for key, kind in (("dt", "a number"), ("cfl_limit", "a number or null")):
         if not _is(meta[key], kind):
             raise ValueError(f"{path}: its meta's {key} must be {kind}, got {meta[key]!r}")
+    saved = meta.get("devices")
+    if on_devices and isinstance(saved, int) and not isinstance(saved, bool) and saved > len(jax.devices()):
+        raise ValueError(
+            f"{path}: the run was saved from {saved} devices and resumes on as many; this process has "
+            f"{len(jax.devices())} (jax.devices())"
+        )
     try:
         check_int("chunk", meta["chunk"], 1)
         check_int("step", meta["step"], 0)

@@ -12,6 +12,7 @@ import os
 import pathlib
 import re
 
+import jax
 import numpy as np
 import pytest
 
@@ -203,6 +204,22 @@ def test_another_format(good, tmp_path, capsys):
 def test_newer_format(good, tmp_path, capsys):
     path = variant(good, tmp_path, meta={"format_version": long_run.FORMAT_VERSION + 1})
     assert_refused(path, capsys, "written by a newer jaxmpm")
+
+
+def test_a_run_saved_from_more_devices_than_here_resumes_on_as_many(good, tmp_path, capsys):
+    """It said "its meta does not describe a run: devices must be a count from 1 to 1", of a good
+    file: the file is read (``load``, on one device) and ``resume`` names what it needs."""
+    path = variant(good, tmp_path, meta={"devices": 8})
+    here = len(jax.devices())
+    want = f"{path}: the run was saved from 8 devices and resumes on as many; this process has {here}"
+    for resume in (long_run.resume, long_run.resume_timed):
+        with pytest.raises(ValueError, match=f"^{re.escape(want)}"):
+            resume(path, progress=False)
+    capsys.readouterr()
+    assert main(["resume", str(path), "--no-progress"]) == 2
+    assert capsys.readouterr().err.strip() == f"jaxmpm: error: {want} (jax.devices())"
+    _, meta = long_run.load(path)
+    assert meta["devices"] == 8
 
 
 def test_unknown_scene(good, tmp_path, capsys):
