@@ -291,6 +291,7 @@ class Model(eqx.Module):
         check_cfl_limit(self.cfl_limit)
         if self.devices is not None:
             check_devices(self.devices)
+            _check_every_process(self.devices)
             _check_even_split(self)
         if self.ordering not in ORDERINGS:
             raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
@@ -302,6 +303,19 @@ class Model(eqx.Module):
         if self.volume_average is not None:
             _check_one_material(self.scene)
         check_float_type(self.scene, self.viscosity)
+
+
+def _check_every_process(devices: tuple[jax.Device, ...]) -> None:
+    """Refuse devices that leave out a process when several run this program: each process calls
+    the run and takes part in it (a process without a device in it failed to read the result)."""
+    count = jax.process_count()
+    of = sorted({d.process_index for d in devices})
+    if count > 1 and len(of) < count:
+        raise ValueError(
+            f"devices must include devices of every process when several run ({count} processes; "
+            f"these are of process {', '.join(map(str, of))} only): pass devices=len(jax.devices()) "
+            "or jax.devices()"
+        )
 
 
 def _check_even_split(model: Model) -> None:

@@ -192,6 +192,17 @@ def test_bad_devices_are_refused_before_tracing(devices, match):
         jm.simulate(jm.GasSlab(cells=4, h=0.25, pad=8), jm.SPQ(), dt=1e-6, steps=1, devices=devices)
 
 
+def test_with_several_processes_the_devices_include_every_process(monkeypatch):
+    # the other process, with no device in the run, failed to read its result ("non-addressable")
+    monkeypatch.setattr(jax, "process_count", lambda: 2)
+    match = (
+        r"^devices must include devices of every process when several run \(2 processes; these are of "
+        r"process 0 only\): pass devices=len\(jax.devices\(\)\) or jax.devices\(\)$"
+    )
+    with pytest.raises(ValueError, match=match):
+        jm.simulate(jm.GasSlab(cells=4, h=0.25, pad=8), jm.SPQ(), dt=1e-6, steps=1, devices=1)
+
+
 def test_the_same_device_twice_is_refused():
     d = jax.devices()[0]
     with pytest.raises(ValueError, match="devices must be distinct"):
