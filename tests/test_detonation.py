@@ -31,7 +31,8 @@ def _run(scene, interp, t_end, **kw):
 def test_gamma_3_wall_products_F_within_2_percent_and_wall_plateau_8_27(interp):
     """400 particles per 10 cm (one per cell), gamma = 3 against a wall, t = 10 us (the front at 8 cm):
     F within 2% of the exact F over the burnt particles 12 cells behind the front, and the pressure at
-    rest against the wall 8/27 p_CJ within 2%."""
+    rest against the wall 8/27 p_CJ and its F = 9/8 within 0.15% and 0.1% (measured 4.8e-4 and 1.8e-4
+    for CPDI, 8.8e-5 and 4.9e-5 for MPQ)."""
     scene = jm.Detonation(L=0.1, cells=400, ppc=1)
     sol = _run(scene, interp, 1e-5)
     st, body = sol.state, sol.body
@@ -44,9 +45,9 @@ def test_gamma_3_wall_products_F_within_2_percent_and_wall_plateau_8_27(interp):
     X = np.asarray(body.X[:, 0])
     rest = X < 0.4 * 8000.0 * 1e-5 * 8.0 / 9.0
     p_wall = float(np.mean(np.asarray(jm.pressure(st))[rest]))
-    assert p_wall == pytest.approx(8.0 / 27.0 * 3e10, rel=0.02)
+    assert p_wall == pytest.approx(8.0 / 27.0 * 3e10, rel=1.5e-3)
     F_rest = np.asarray(st.F[:, 0, 0])[rest]
-    np.testing.assert_allclose(np.mean(F_rest), 9.0 / 8.0, rtol=0.02)
+    np.testing.assert_allclose(np.mean(F_rest), 9.0 / 8.0, rtol=1e-3)
     # Every particle the front has passed is burnt; none ahead of it has started.
     lam = np.asarray(st.internal["lambda"])
     front = 8000.0 * 1e-5

@@ -366,7 +366,7 @@ def test_isentrope_refuses_an_eos_with_energy_and_names_the_principal_isentrope(
     with pytest.raises(ValueError, match=match):
         Isentrope(eos)
     principal = Isentrope(JWLIsentrope.from_jwl(eos, e0))
-    assert float(principal(0.9)) == pytest.approx(1.1434e10, rel=1e-4)
+    assert float(principal(0.9)) == pytest.approx(1.1434e10, abs=5e5)  # to its five digits
     with pytest.raises(
         ValueError, match=r"^eos must be a barotropic AbstractEOS with a field rho0, got IdealGas"
     ):

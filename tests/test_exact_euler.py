@@ -284,13 +284,14 @@ def test_noh_rankine_hugoniot(gamma, rho0, u0):
 
 
 def test_noh_is_the_limit_of_colliding_riemann_states():
-    """Two cold streams colliding: the Riemann solution with a tiny pressure approaches Noh's."""
+    """Two cold streams colliding: the Riemann solution with a tiny pressure eps approaches Noh's, to
+    order eps (measured 11 eps in the density, 2.3 eps in the pressure)."""
     t, eps = 1.0, 1e-10
     x = jnp.array([0.1, 0.25, 0.5, 1.0])
     s = riemann_solution(x, t, 1.0, 1.0, eps, 1.0, -1.0, eps, 5.0 / 3.0)
     n = noh(x, t)
     for k in ("rho", "u", "p"):
-        np.testing.assert_allclose(s[k], n[k], atol=1e-4)
+        np.testing.assert_allclose(s[k], n[k], atol=100 * eps)
 
 
 def test_jit_and_vmap_over_points():

@@ -53,8 +53,9 @@ def test_the_gurney_velocity_follows_the_explosive(explosive, sqrt_2E, slab, cyl
 
 def test_comp_b_drives_the_plate_to_gurneys_velocity():
     """4 cm of Comp B (JWL with its energy) drives 1 cm of 4340 steel: the plate's velocity at 30 us
-    is within 5% of Gurney's 1356 m/s (1357 m/s at 100 cells), and it gains less than 2% over the last
-    5 us (the products push on: 1375 m/s at 40 us)."""
+    is within 5% of Gurney's 1356 m/s, 1357 m/s at 100 cells (to the metre per second: an explicit
+    energy update instead of the step's gave 1348), and it gains less than 2% over the last 5 us (the
+    products push on: 1375 m/s at 40 us)."""
     scene = jm.GurneySlab(cells=100, pad=400)
     saveat = jm.SaveAt(every=100, fields=("v",))
     sol = jm.simulate(
@@ -68,6 +69,7 @@ def test_comp_b_drives_the_plate_to_gurneys_velocity():
     )
     v = float(scene.plate_velocity(sol.state, sol.body))
     assert v == pytest.approx(1356.0, rel=0.05), v
+    assert v == pytest.approx(1357.0, abs=0.5), v  # measured 1357.18
     w = np.where(np.asarray(sol.body.region) == 1, np.asarray(sol.body.m), 0.0)
     ts = np.asarray(sol.ts)
     hist = np.asarray(sol.history["v"][:, :, 0]) @ w / w.sum()

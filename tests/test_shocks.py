@@ -44,14 +44,16 @@ def star_region(scene, sol, margin=0.03):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["cpdi", "mpq"])
-def test_sod_star_plateaus_within_one_percent(name):
-    """800 particles (400 cells, 2 per cell): the star region's mean pressure and velocity."""
+def test_sod_star_plateaus_within_a_tenth_of_a_percent(name):
+    """800 particles (400 cells, 2 per cell): the star region's mean pressure within 0.1% and velocity
+    within 0.05% of Toro's (measured 3.1e-4 and 4e-5 CPDI, 5.6e-4 and 1.8e-4 MPQ; an explicit energy
+    update instead of the step's moved the pressure 1.2-1.5e-3)."""
     scene, sol = sod(name, 400)
     star = star_region(scene, sol)
     assert star.sum() > 100
     p = np.asarray(jm.pressure(sol.state))[star]
     u = np.asarray(sol.state.v[:, 0])[star]
-    assert abs(p.mean() / P_STAR - 1) < 0.01 and abs(u.mean() / U_STAR - 1) < 0.01
+    assert abs(p.mean() / P_STAR - 1) < 1e-3 and abs(u.mean() / U_STAR - 1) < 5e-4, (p.mean(), u.mean())
     # the exact star state the errors are measured against is Toro's, to its printed digits
     w = scene.waves()
     assert abs(float(w["p_star"]) - P_STAR) < 5e-6 and abs(float(w["u_star"]) - U_STAR) < 5e-6
