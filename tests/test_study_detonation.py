@@ -56,12 +56,12 @@ def test_study_detonation_small(tmp_path, capsys):
     }
     assert all(g["met"] == (g["value"] < 0.02) for g in out["goals"])
 
-    # Table 2: finite orders near one.
+    # Table 2: first order (measured 0.92-0.99 for F and p, CPDI and MPQ).
     conv = out["convergence"]
     assert [r["cells_per_10cm"] for r in conv["rows"]] == 2 * list(cfg["convergence"])
     for o in conv["orders"]:
         for q in ("F_rms_rel", "p_rms_rel"):
-            assert 0.5 < o[f"{q}_order_fit"] < 2.0 and 0.5 < o[f"{q}_order_finest"] < 2.0, o
+            assert 0.8 < o[f"{q}_order_fit"] < 1.1 and 0.8 < o[f"{q}_order_finest"] < 1.1, o
 
     # Table 3: the time burn falls short of P_CJ (measured -20% and -13%), less when refined (order 0.6);
     # a volume burn of an inert reactant never lights.
@@ -72,7 +72,7 @@ def test_study_detonation_small(tmp_path, capsys):
     assert all(peaks[("volume", c)]["peak"] < detonation.UNLIT for c in cfg["peak"])
     assert "| gamma-law | volume | never lit | never lit | - | - |" in text
     orders = {o["burn"]: o for o in out["peak_orders"]}
-    assert 0.3 < orders["time"]["order_fit"] < 1.5 and orders["volume"]["order_fit"] is None
+    assert 0.5 < orders["time"]["order_fit"] < 0.75 and orders["volume"]["order_fit"] is None  # 0.62
     for title in ("## 1. F of the converted", "## 2. Convergence", "## 3. Peak pressure", "## 4. Explosive"):
         assert title in text
     # Table 4: the Gurney slab at 50 cells, 10 us: the plate at 1125 m/s (0.83 of Gurney's), still rising.

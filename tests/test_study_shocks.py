@@ -58,7 +58,8 @@ def test_convergence_study_gives_the_detonation_rows(tmp_path):
     assert runs[-1]["F_rms_rel"] < runs[0]["F_rms_rel"]  # CPDI converges on the CJ-Taylor wave
     assert order["scene"] == "detonation" and order["failures"] == ""
     for k in convergence.DETONATION_ERRORS:
-        assert 0.5 < order[f"{k}_order"] < 2 and order[f"{k}_finest"] == runs[-1][k]
+        # first order: measured 0.93 (F) and 0.97 (p)
+        assert 0.8 < order[f"{k}_order"] < 1.1 and order[f"{k}_finest"] == runs[-1][k]
     text = (tmp_path / "shocks.md").read_text()
     assert "**detonation**" in text and "| order F | order p |" in text and "| CPDI | FLIP |" in text
     assert "**Energy without dissipation**" not in text
