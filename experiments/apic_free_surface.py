@@ -13,16 +13,14 @@ then, and the velocities of the outermost particle and of the one inside it. Abo
     python experiments/apic_free_surface.py 100 32 mpq # another interpolator (default cpdi)
 """
 
-import sys
+import argparse
 
 import jax
+import numpy as np
+from _entry import positive
 
-jax.config.update("jax_enable_x64", True)
-
-import numpy as np  # noqa: E402
-
-import jaxmpm as jm  # noqa: E402
-from jaxmpm.studies import blast  # noqa: E402
+import jaxmpm as jm
+from jaxmpm.studies import blast
 
 FRACTIONS = (0.05, 0.1, 0.2, 0.3, 0.5, 1.0)
 
@@ -57,10 +55,52 @@ def history(ratio: float, cells: int, transfer: str, interpolator: str = "cpdi")
     return lines
 
 
-def main(argv: list[str]) -> None:
-    ratios = [float(argv[0])] if argv else [10.0, 100.0]
-    cells = int(argv[1]) if len(argv) > 1 else 32
-    interpolator = argv[2] if len(argv) > 2 else "cpdi"
+def _ratio(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a pressure ratio is a number above 1, got {text!r}") from None
+    if not 1.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"a pressure ratio is a number above 1, got {text!r}")
+    return value
+
+
+def _cells(text: str) -> int:
+    return positive(text, "the cells across the slab are an integer >= 1")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "ratio",
+        metavar="RATIO",
+        type=_ratio,
+        nargs="?",
+        default=None,
+        help="the pressure ratio (default: 10 and 100)",
+    )
+    parser.add_argument(
+        "cells",
+        metavar="CELLS",
+        type=_cells,
+        nargs="?",
+        default=32,
+        help="cells across the slab (default 32)",
+    )
+    parser.add_argument(
+        "interpolator",
+        nargs="?",
+        default="cpdi",
+        choices=list(jm.INTERPOLATORS),
+        metavar="INTERPOLATOR",
+        help=f"one of {', '.join(jm.INTERPOLATORS)} (default cpdi)",
+    )
+    args = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    ratios = [args.ratio] if args.ratio is not None else [10.0, 100.0]
+    cells, interpolator = args.cells, args.interpolator
     for ratio in ratios:
         for transfer in ("flip", "apic"):
             print(f"slab at {ratio:g}:1, {cells} cells, {interpolator.upper()}, {transfer.upper()}")
@@ -68,4 +108,4 @@ def main(argv: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    main()

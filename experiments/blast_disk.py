@@ -18,20 +18,17 @@ floor of nodal mass, `Setup.tiny`, to K times the largest particle mass): a node
 no velocity and no acceleration, and its force is folded onto its neighbours with mass.
 """
 
-import sys
+import argparse
+import contextlib
+import math
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
+import numpy as np
 
-jax.config.update("jax_enable_x64", True)
-
-import contextlib  # noqa: E402
-
-import equinox as eqx  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-import jaxmpm as jm  # noqa: E402
-from jaxmpm import _simulate, metrics  # noqa: E402
+import jaxmpm as jm
+from jaxmpm import _simulate, metrics
 
 
 @contextlib.contextmanager
@@ -121,9 +118,66 @@ def run(interp: str, transfer: str, opts: tuple[str, ...]) -> str:
     )
 
 
-if __name__ == "__main__":
-    if len(sys.argv) > 1:
-        print(run(sys.argv[1], sys.argv[2], tuple(sys.argv[3:])))
+FLAGS = ("musl", "visc", "cell", "node", "ppc1")
+"""The options without a value."""
+VALUES = {  # option: (its type, the least value, whether the least is allowed, what it is)
+    "shear": (float, 0.0, True, "a number >= 0"),
+    "ratio": (float, 1.0, False, "a number above 1"),
+    "cells": (int, 1, True, "an integer >= 1"),
+    "pad": (float, 0.0, True, "a number >= 0"),
+    "cutoff": (float, 0.0, True, "a number >= 0"),
+}
+"""The options ``KEY=VALUE``."""
+
+
+def _option(text: str) -> str:
+    """``text``, once it is one of ``FLAGS`` or ``KEY=VALUE`` with ``KEY`` of ``VALUES`` and a value
+    it allows."""
+    if text in FLAGS:
+        return text
+    key, eq, value = text.partition("=")
+    if not eq or key not in VALUES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an option: one of {', '.join(FLAGS)}, or "
+            f"{', '.join(f'{k}=VALUE' for k in VALUES)}"
+        )
+    kind, least, inclusive, what = VALUES[key]
+    try:
+        number = kind(value)
+    except ValueError:
+        number = None
+    if number is None or not math.isfinite(number) or number < least or (number == least and not inclusive):
+        raise argparse.ArgumentTypeError(f"{key} is {what}, got {value!r}")
+    return text
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "interpolator",
+        nargs="?",
+        choices=list(jm.INTERPOLATORS),
+        metavar="INTERPOLATOR",
+        help=f"one of {', '.join(jm.INTERPOLATORS)} (none: the table of docs/multid.md)",
+    )
+    parser.add_argument(
+        "transfer", nargs="?", choices=list(jm.TRANSFERS), metavar="TRANSFER", help=", ".join(jm.TRANSFERS)
+    )
+    parser.add_argument("options", nargs="*", type=_option, metavar="OPTION", help="see above")
+    args = parser.parse_args(argv)
+    if args.interpolator is not None and args.transfer is None:
+        parser.error(f"an interpolator is followed by a transfer: one of {', '.join(jm.TRANSFERS)}")
+    if "cell" in args.options and "node" in args.options:
+        parser.error("one volume averaging: cell or node, not both")
+    jax.config.update("jax_enable_x64", True)
+    if args.interpolator is not None:
+        print(run(args.interpolator, args.transfer, tuple(args.options)))
     else:
         for interp, transfer, opts in CONFIGS:
             print(run(interp, transfer, opts), flush=True)
+
+
+if __name__ == "__main__":
+    main()

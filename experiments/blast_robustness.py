@@ -8,11 +8,11 @@ USL and MUSL. Prints one line per case. About 30 s on 2 cores.
     python experiments/blast_robustness.py
 """
 
+import argparse
+
 import jax
 
-jax.config.update("jax_enable_x64", True)
-
-import jaxmpm as jm  # noqa: E402
+import jaxmpm as jm
 
 
 def verdict(sol):
@@ -28,17 +28,27 @@ def verdict(sol):
     return "ok" if f is None else f"fail@{f['step']} ({f['quantities'][0].split(' (')[0]})"
 
 
-for P0 in (2e5, 1.2e5):
-    for name in ("mpq", "cpdi", "spq", "gimp"):
-        for ac in (0, 1):
-            for ordering in ("usl", "musl"):
-                kw = dict(P0=P0, rho0=P0 / 1e5, h=1 / 16, cells=8, pad=60)
-                slab, charge = jm.GasSlab(**kw), jm.Blast(**kw)
-                dt = 0.25 * float(slab.h) / float(slab.wave_speed)
-                run = dict(dt=dt, steps=300, artificial_cells=ac, throw=False, ordering=ordering)
-                s1 = jm.simulate(slab, jm.INTERPOLATORS[name](), **run)
-                s2 = jm.simulate(charge, jm.INTERPOLATORS[name](), **run)
-                print(
-                    f"P0={P0:g} {name:5} ac={ac} {ordering:4}  "
-                    f"1D slab: {verdict(s1):40} 2D blast: {verdict(s2)}"
-                )
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    for P0 in (2e5, 1.2e5):
+        for name in ("mpq", "cpdi", "spq", "gimp"):
+            for ac in (0, 1):
+                for ordering in ("usl", "musl"):
+                    kw = dict(P0=P0, rho0=P0 / 1e5, h=1 / 16, cells=8, pad=60)
+                    slab, charge = jm.GasSlab(**kw), jm.Blast(**kw)
+                    dt = 0.25 * float(slab.h) / float(slab.wave_speed)
+                    run = dict(dt=dt, steps=300, artificial_cells=ac, throw=False, ordering=ordering)
+                    s1 = jm.simulate(slab, jm.INTERPOLATORS[name](), **run)
+                    s2 = jm.simulate(charge, jm.INTERPOLATORS[name](), **run)
+                    print(
+                        f"P0={P0:g} {name:5} ac={ac} {ordering:4}  "
+                        f"1D slab: {verdict(s1):40} 2D blast: {verdict(s2)}"
+                    )
+
+
+if __name__ == "__main__":
+    main()

@@ -8,14 +8,13 @@ off): the time reached, the status, the largest corner gap over `r0` and the fol
     python experiments/blast_square.py
 """
 
+import argparse
+
 import jax
+import numpy as np
 
-jax.config.update("jax_enable_x64", True)
-
-import numpy as np  # noqa: E402
-
-import jaxmpm as jm  # noqa: E402
-from jaxmpm import metrics  # noqa: E402
+import jaxmpm as jm
+from jaxmpm import metrics
 
 CONFIGS = (  # transfer, ordering, c_shear
     ("flip", "musl", None),
@@ -49,7 +48,16 @@ def run(name: str, transfer: str, ordering: str, shear: float | None) -> str:
     )
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
     for name in ("cpdi", "mpq"):
         for config in CONFIGS:
             print(run(name, *config), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -14,25 +14,27 @@ planes hold the node beyond the face at rest rather than mirroring it, face trac
 hats, and one layer of artificial cells is too few for a stencil of a cell and a half.
 """
 
+import argparse
 import pathlib
 import sys
 
 import jax
 
-jax.config.update("jax_enable_x64", True)
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-
-from bspline import BSpline  # noqa: E402
-
-import jaxmpm as jm  # noqa: E402
-from jaxmpm.studies import blast  # noqa: E402
-
-# this script's own registry entry, so that the study's runner can make the interpolator by name
-jm.INTERPOLATORS["bspline"] = BSpline
+import jaxmpm as jm
+from jaxmpm.studies import blast
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from bspline import BSpline
+
+    # this script's own registry entry, so that the study's runner can make the interpolator by name
+    jm.INTERPOLATORS["bspline"] = BSpline
     refs = blast.References()
     for ratio in (1.5, 10.0, 100.0):
         for remedy in blast.REMEDIES:

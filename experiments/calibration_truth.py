@@ -7,7 +7,9 @@ CPDI; the fits are ``jaxmpm.calibrate``'s, the settings those of ``tests/test_ca
 whose assertions bound the same quantities. Writes ``results.json`` and ``table.md`` to ``--out``
 (the calibration page includes the table).
 
-    python experiments/calibration_truth.py --out docs/calibration_truth
+    python experiments/calibration_truth.py --out docs/calibration_truth --overwrite
+
+A file already in ``--out`` is refused, before anything is computed, unless ``--overwrite``.
 """
 
 import argparse
@@ -17,15 +19,16 @@ import time
 import warnings
 
 import jax
+import numpy as np
 
-jax.config.update("jax_enable_x64", True)
-import numpy as np  # noqa: E402
+import jaxmpm as jm
+from jaxmpm import calibrate as cal
+from jaxmpm.scenes.gas_slab import pad_for
+from jaxmpm.studies._output import write_text
+from jaxmpm.studies._runtime import machine
 
-import jaxmpm as jm  # noqa: E402
-from jaxmpm import calibrate as cal  # noqa: E402
-from jaxmpm.scenes.gas_slab import pad_for  # noqa: E402
-from jaxmpm.studies._runtime import machine  # noqa: E402
-
+FILES = ("results.json", "table.md")
+"""The files written to ``--out``."""
 UNIT = dict(p_atm=1.0, rho0=1.0)
 TRUTH = dict(gamma=1.3, P0=4.2)
 START = dict(gamma=1.6, P0=3.0)
@@ -196,7 +199,12 @@ def markdown(r: dict) -> str:
     return "\n".join(lines)
 
 
-def main(out: str) -> dict:
+def measure() -> dict:
+    """Every measurement, in float64 (``main`` switches it on).
+
+    Returns:
+        The results (``results.json``).
+    """
     t0 = time.perf_counter()
     ref = reference()
     result = dict(
@@ -209,14 +217,31 @@ def main(out: str) -> dict:
         machine=machine(),
     )
     result["wall_s"] = time.perf_counter() - t0
-    path = pathlib.Path(out)
+    return result
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--out", required=True, help="folder for results.json and table.md")
+    parser.add_argument("--overwrite", action="store_true", help="replace results.json and table.md there")
+    args = parser.parse_args(argv)
+    path = pathlib.Path(args.out)
+    if path.exists() and not path.is_dir():
+        parser.error(f"--out {args.out} is a file, not a folder")
+    for name in FILES:
+        if (path / name).is_dir():
+            parser.error(f"--out {args.out}: {name} is a folder, where this script writes a file")
+        if (path / name).exists() and not args.overwrite:
+            parser.error(f"--out {args.out} already holds {name}; pass --overwrite to replace it")
+    jax.config.update("jax_enable_x64", True)
+    result = measure()
     path.mkdir(parents=True, exist_ok=True)
-    (path / "results.json").write_text(json.dumps(result, indent=1, allow_nan=False) + "\n")
-    (path / "table.md").write_text(markdown(result))
+    write_text(path / "results.json", json.dumps(result, indent=1, allow_nan=False) + "\n")
+    write_text(path / "table.md", markdown(result))
     return result
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", required=True, help="folder for results.json and table.md")
-    main(parser.parse_args().out)
+    main()

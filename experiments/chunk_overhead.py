@@ -6,20 +6,20 @@ machine noise spreads over all of them. Run time excludes compilation; the media
 Usage: python experiments/chunk_overhead.py [--small]
 """
 
+import argparse
 import statistics
-import sys
 
 import jax
 
-jax.config.update("jax_enable_x64", True)
-import jaxmpm as jm  # noqa: E402
+import jaxmpm as jm
 
 H = 0.002
 DT = 0.1 * H / (1.4 * 2.0e5) ** 0.5
 
 
-def main(small: bool = False, repeats: int = 3) -> dict:
-    """Time each configuration ``repeats`` times, interleaved, and print the medians.
+def measure(small: bool = False, repeats: int = 3) -> dict:
+    """Time each configuration ``repeats`` times, interleaved, and print the medians (float64: ``main``
+    switches it on).
 
     Args:
         small: 2,000 steps instead of 100,000.
@@ -64,5 +64,15 @@ def main(small: bool = False, repeats: int = 3) -> dict:
     return out
 
 
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--small", action="store_true", help="2,000 steps instead of 100,000")
+    args = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    return measure(small=args.small)
+
+
 if __name__ == "__main__":
-    main(small="--small" in sys.argv)
+    main()

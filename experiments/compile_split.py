@@ -15,6 +15,10 @@ import sys
 import time
 from pathlib import Path
 
+from _entry import check_particles, interpolators, positive
+
+import jaxmpm as jm
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -33,8 +37,6 @@ def one(name: str, dim: int, n: int, f64: bool) -> dict:
     import jax
 
     jax.config.update("jax_enable_x64", f64)
-    sys.path.insert(0, str(ROOT))
-    import jaxmpm as jm
     from benchmarks.bench import _scene
     from jaxmpm import _simulate
 
@@ -64,12 +66,23 @@ def one(name: str, dim: int, n: int, f64: bool) -> dict:
 def main(argv=None) -> list[dict]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dim", type=int, default=3, choices=(2, 3))
-    parser.add_argument("--n", type=int, default=None, help="particles (default 32,768 in 3D, 102,400 in 2D)")
+    parser.add_argument(
+        "--n", type=positive, default=None, help="particles (default 32,768 in 3D, 102,400 in 2D)"
+    )
     parser.add_argument("--f64", action="store_true", help="float64 (default float32)")
-    parser.add_argument("--interpolators", default="spq,gimp,cpdi,mpq,cpdi2")
-    parser.add_argument("--one", default=None, help=argparse.SUPPRESS)  # a child process's interpolator
+    parser.add_argument(
+        "--interpolators",
+        type=interpolators,
+        default="spq,gimp,cpdi,mpq,cpdi2",
+        help=f"comma-separated, of {', '.join(jm.INTERPOLATORS)} (default spq,gimp,cpdi,mpq,cpdi2)",
+    )
+    parser.add_argument(  # a child process's interpolator
+        "--one", default=None, choices=list(jm.INTERPOLATORS), help=argparse.SUPPRESS
+    )
     args = parser.parse_args(argv)
-    n = args.n or (32_768 if args.dim == 3 else 102_400)
+    n = (32_768 if args.dim == 3 else 102_400) if args.n is None else args.n
+    sys.path.insert(0, str(ROOT))
+    check_particles(parser, n, args.dim)
     if args.one:
         print(json.dumps(one(args.one, args.dim, n, args.f64)))
         return []
@@ -77,10 +90,12 @@ def main(argv=None) -> list[dict]:
     print(f"{args.dim}D, {n:,} particles, {'float64' if args.f64 else 'float32'}, 100 steps (seconds)")
     print("| interpolator | trace | lower | XLA compile | total | computations | HLO lines |")
     print("|---|---|---|---|---|---|---|")
-    for name in args.interpolators.split(","):
+    for name in args.interpolators:
         cmd = [sys.executable, __file__, "--dim", str(args.dim), "--n", str(n), "--one", name]
         cmd += ["--f64"] if args.f64 else []
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        out = subprocess.run(cmd, capture_output=True, text=True)
+        if out.returncode:
+            sys.exit(f"the process for {name} failed (status {out.returncode}):\n{out.stderr[-2000:]}")
         r = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(r)
         print(

@@ -6,19 +6,19 @@ halves with dt is a time-discretisation error; one that does not is a property o
 scheme. Usage: python experiments/cpgimp_boundary.py [--small]
 """
 
-import sys
+import argparse
 
 import jax
 import numpy as np
 
-jax.config.update("jax_enable_x64", True)
-import jaxmpm as jm  # noqa: E402
+import jaxmpm as jm
 
 TIMES = (2.5e-4, 5e-4, 7.5e-4, 1.0e-3, 1.25e-3)
 
 
-def main(small: bool = False) -> list[dict]:
-    """Run both cases at each time step and print the end particles' errors.
+def measure(small: bool = False) -> list[dict]:
+    """Run both cases at each time step and print the end particles' errors (float64: ``main``
+    switches it on).
 
     Args:
         small: two time steps instead of three.
@@ -61,6 +61,16 @@ def main(small: bool = False) -> list[dict]:
     return rows
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> list[dict]:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--small", action="store_true", help="two time steps instead of three")
+    args = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
     print("relative F error of the end particles at t = " + ", ".join(f"{t:g}" for t in TIMES))
-    main(small="--small" in sys.argv)
+    return measure(small=args.small)
+
+
+if __name__ == "__main__":
+    main()

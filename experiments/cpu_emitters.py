@@ -18,30 +18,37 @@ import sys
 import time
 
 import jax
+from _entry import check_particles, interpolators, positive
+
+import jaxmpm as jm
 
 OPTIONS = {"fusion": None, "classic": {"xla_cpu_use_fusion_emitters": False}}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dtype", choices=("f32", "f64"), default="f32")
     parser.add_argument("--dim", type=int, choices=(1, 2, 3), default=2)
-    parser.add_argument("--n", type=int, default=102_400)
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--interpolators", default="spq,mpq,cpdi,gimp")
-    args = parser.parse_args()
+    parser.add_argument("--n", type=positive, default=102_400, help="particles (default 102,400)")
+    parser.add_argument("--rounds", type=positive, default=2, help="rounds of each form (default 2)")
+    parser.add_argument(
+        "--interpolators",
+        type=interpolators,
+        default="spq,mpq,cpdi,gimp",
+        help=f"comma-separated, of {', '.join(jm.INTERPOLATORS)} (default spq,mpq,cpdi,gimp)",
+    )
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    check_particles(parser, args.n, args.dim)
     jax.config.update("jax_enable_x64", args.dtype == "f64")
     import numpy as np
 
-    import jaxmpm as jm
-    from jaxmpm import _simulate
-
-    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
     from benchmarks.bench import _scene
+    from jaxmpm import _simulate
 
     scene, dt = _scene(args.n, args.dim)
     steps = 100
-    for name in args.interpolators.split(","):
+    for name in args.interpolators:
         interpolator = jm.INTERPOLATORS[name]()
         model, dt_arr, n_steps, saveat = _simulate.prepare(scene, interpolator, dt=dt, steps=steps)
         block = _simulate.checkpoint_block(False, n_steps)

@@ -9,19 +9,20 @@ For the gas slab (CPDI, FLIP, 16 and 32 cells, 1,000 steps), members per second 
 Both in one process, on the same machine; the ratio is what to compare. Also the sharded ensemble
 on 4 forced host devices when run with ``XLA_FLAGS=--xla_force_host_platform_device_count=4``.
 
-    python experiments/ensemble_throughput.py [--out docs/ensemble_throughput.csv]
+    python experiments/ensemble_throughput.py [--out docs/ensemble_throughput.csv [--overwrite]]
+
+An existing ``--out`` is refused, before anything is computed, unless ``--overwrite``.
 """
 
 import argparse
-import csv
 import time
 
 import jax
+import numpy as np
+from _entry import refuse_existing
 
-jax.config.update("jax_enable_x64", True)
-import numpy as np  # noqa: E402
-
-import jaxmpm as jm  # noqa: E402
+import jaxmpm as jm
+from jaxmpm.studies._output import csv_text, write_text
 
 
 def measure(cells: int, members: int, steps: int = 1000) -> dict:
@@ -68,11 +69,15 @@ def measure(cells: int, members: int, steps: int = 1000) -> dict:
     )
 
 
-def main():
+def main(argv: list[str] | None = None):
     """Measure 16 and 32 cells at 64, 256 and 1,024 members; print a table, optionally write a CSV."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--out", default=None)
-    args = p.parse_args()
+    p.add_argument("--out", default=None, help="the CSV file to write")
+    p.add_argument("--overwrite", action="store_true", help="replace --out where it exists")
+    args = p.parse_args(argv)
+    if args.out:
+        refuse_existing(p, "--out", [args.out], args.overwrite)
+    jax.config.update("jax_enable_x64", True)
     rows = [measure(c, m) for c in (16, 32) for m in (64, 256, 1024)]
     print("| cells | members | devices | ensemble (s) | compile+first (s) | separate runs (s) | speedup |")
     print("|---|---|---|---|---|---|---|")
@@ -82,10 +87,7 @@ def main():
             f"{r['ensemble_compile_and_first_s']:.2f} | {r['separate_s']:.2f} | {r['speedup']:.1f}x |"
         )
     if args.out:
-        with open(args.out, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        write_text(args.out, csv_text(rows, list(rows[0])))
 
 
 if __name__ == "__main__":

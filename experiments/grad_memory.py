@@ -13,10 +13,12 @@ F error. For each step count it measures, each configuration in its own process:
 - for plain (uncheckpointed) reverse mode, XLA's buffer account only: at 100,000 steps it would
   need tens of GB, so it is compiled, not run.
 
-Usage: python experiments/grad_memory.py [--small] [--out results/grad_memory.csv]
+Usage: python experiments/grad_memory.py [--small] [--out results/grad_memory.csv] [--overwrite]
+
+An existing ``--out`` is refused, before anything is computed, unless ``--overwrite``.
 """
 
-import csv
+import argparse
 import json
 import pathlib
 import resource
@@ -24,11 +26,12 @@ import subprocess
 import sys
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # the checkout's benchmarks/
+from _entry import positive, refuse_existing
 
-from benchmarks.bench import reverse_objective as objective  # noqa: E402
-from benchmarks.bench import xla_bytes  # noqa: E402
+from jaxmpm.studies._output import csv_text, write_text
 
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+MODES = ("forward", "reverse", "plain")
 STEPS = (1_000, 10_000, 100_000)
 SMALL_STEPS = (200, 1_000)
 
@@ -47,6 +50,9 @@ def one(mode: str, steps: int) -> dict:
     """
     import jax
     import jax.numpy as jnp
+
+    from benchmarks.bench import reverse_objective as objective  # the checkout's benchmarks/ (main)
+    from benchmarks.bench import xla_bytes
 
     jax.config.update("jax_enable_x64", True)
     beta = jnp.asarray(2.0)
@@ -69,25 +75,25 @@ def one(mode: str, steps: int) -> dict:
     return out
 
 
-def main(small: bool = False, out: str = "results/grad_memory.csv") -> list[dict]:
-    """Measure every configuration, each in its own process, print a line per step count, write a CSV.
+def measure(small: bool = False) -> list[dict]:
+    """Measure every configuration, each in its own process, and print a line per step count.
 
     Args:
         small: 200 and 1,000 steps instead of 1,000 to 100,000.
-        out: the CSV file to write.
 
     Returns:
         One dict per configuration (``mode``, ``steps``, times, bytes).
     """
     rows = []
     for steps in SMALL_STEPS if small else STEPS:
-        for mode in ("forward", "reverse", "plain"):
+        for mode in MODES:
             proc = subprocess.run(
-                [sys.executable, __file__, "--one", mode, str(steps)],
+                [sys.executable, __file__, "--one", mode, "--steps", str(steps)],
                 capture_output=True,
                 text=True,
-                check=True,
             )
+            if proc.returncode:
+                sys.exit(f"the process for {mode} at {steps} steps failed:\n{proc.stderr[-2000:]}")
             rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
         fwd, rev, plain = rows[-3:]
         print(
@@ -99,21 +105,43 @@ def main(small: bool = False, out: str = "results/grad_memory.csv") -> list[dict
             f"{fwd['peak_rss_bytes'] / 1e6:.0f} MB, reverse {rev['peak_rss_bytes'] / 1e6:.0f} MB",
             flush=True,
         )
-    path = pathlib.Path(out)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    """Measure every configuration (``measure``) and write a CSV of them; or, with ``--one``, measure
+    one configuration in this process and print it as JSON (the processes ``measure`` starts).
+
+    Returns:
+        One dict per configuration (``mode``, ``steps``, times, bytes).
+    """
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--small", action="store_true", help="200 and 1,000 steps instead of 1,000 to 100,000"
+    )
+    parser.add_argument("--out", default="results/grad_memory.csv", help="the CSV file to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out where it exists")
+    parser.add_argument("--one", choices=MODES, help=argparse.SUPPRESS)  # a child process's configuration
+    parser.add_argument("--steps", type=positive, help=argparse.SUPPRESS)  # and its step count
+    args = parser.parse_args(argv)
+    if args.one is not None:
+        if args.steps is None:
+            parser.error("--one goes with --steps")
+        sys.path.insert(0, str(ROOT))  # the checkout's benchmarks/
+        row = one(args.one, args.steps)
+        print(json.dumps(row))
+        return [row]
+    refuse_existing(parser, "--out", [args.out], args.overwrite)
+    rows = measure(small=args.small)
+    path = pathlib.Path(args.out)
     path.parent.mkdir(parents=True, exist_ok=True)
     keys = sorted({k for r in rows for k in r})
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
+    write_text(path, csv_text(rows, keys))
     print(f"wrote {path}")
     return rows
 
 
 if __name__ == "__main__":
-    if "--one" in sys.argv:
-        i = sys.argv.index("--one")
-        print(json.dumps(one(sys.argv[i + 1], int(sys.argv[i + 2]))))
-    else:
-        out = sys.argv[sys.argv.index("--out") + 1] if "--out" in sys.argv else "results/grad_memory.csv"
-        main(small="--small" in sys.argv, out=out)
+    main()

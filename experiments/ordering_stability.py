@@ -6,18 +6,18 @@ artificial cells. Prints 'ok' or 'X@k' (broke down at step k, with the quantity 
 Usage: python experiments/ordering_stability.py [--small]
 """
 
-import sys
+import argparse
 
 import jax
 
-jax.config.update("jax_enable_x64", True)
-import jaxmpm as jm  # noqa: E402
+import jaxmpm as jm
 
 C0 = (1.4 * 2.0e5 / 1.0) ** 0.5  # sound speed of the default gas at F = 1
 
 
-def main(small: bool = False) -> dict:
-    """Run every case under USL and MUSL and print one line per ordering, size and CFL number.
+def measure(small: bool = False) -> dict:
+    """Run every case under USL and MUSL and print one line per ordering, size and CFL number (float64:
+    ``main`` switches it on).
 
     Args:
         small: 8 cells only.
@@ -50,5 +50,15 @@ def main(small: bool = False) -> dict:
     return results
 
 
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--small", action="store_true", help="8 cells only")
+    args = parser.parse_args(argv)
+    jax.config.update("jax_enable_x64", True)
+    return measure(small=args.small)
+
+
 if __name__ == "__main__":
-    main(small="--small" in sys.argv)
+    main()

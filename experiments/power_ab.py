@@ -16,24 +16,26 @@ import pathlib
 import sys
 
 import jax
+from _entry import check_particles, positive
+
+import jaxmpm as jm
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dtype", choices=("f32", "f64"), default="f32")
     parser.add_argument("--dim", type=int, choices=(1, 2, 3), default=1)
-    parser.add_argument("--n", type=int, default=1_048_576)
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--interpolator", default="spq")
-    args = parser.parse_args()
+    parser.add_argument("--n", type=positive, default=1_048_576, help="particles (default 1,048,576)")
+    parser.add_argument("--rounds", type=positive, default=2, help="rounds of each form (default 2)")
+    parser.add_argument("--interpolator", default="spq", choices=list(jm.INTERPOLATORS))
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    check_particles(parser, args.n, args.dim)
     jax.config.update("jax_enable_x64", args.dtype == "f64")
     import jax.numpy as jnp
 
-    import jaxmpm as jm
-    from jaxmpm import materials
-
-    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
     from benchmarks.bench import _scene, steps_for
+    from jaxmpm import materials
 
     library = materials.AdiabaticGas.pressure
 

@@ -20,6 +20,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _entry import positive
 
 # fdlibm e_log.c: the coefficients of its polynomial in s^2, and ln 2 in two parts
 _LG = (
@@ -68,10 +69,10 @@ def best_ms(f, *args, repeats: int = 200) -> float:
     return best * 1e3
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=102_400)
-    args = parser.parse_args()
+    parser.add_argument("--n", type=positive, default=102_400, help="volume ratios (default 102,400)")
+    args = parser.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     forms = {
         "J ** p": jax.jit(lambda J, p: J**p),

@@ -154,16 +154,30 @@ def time_form(fn, args, reps=30):
     return (time.perf_counter() - t0) / reps
 
 
-def main():
+def _sizes(text: str) -> list[int]:
+    """``text``, comma-separated particle counts of at least 12 (the particles lie between nodes 5 and
+    ``n / 2``), as a list (an ``argparse`` type)."""
+    try:
+        sizes = [int(s) for s in text.split(",")]
+    except ValueError:
+        sizes = []
+    if not sizes or min(sizes) < 12:
+        raise argparse.ArgumentTypeError(f"comma-separated particle counts >= 12, got {text!r}")
+    return sizes
+
+
+def main(argv: list[str] | None = None):
     """Time every form at each size of ``--n`` and print milliseconds and nanoseconds per value."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--n", default="262144,1048576")
+    p.add_argument(
+        "--n", type=_sizes, default="262144,1048576", help="particle counts, comma-separated (>= 12 each)"
+    )
     p.add_argument("--x64", action="store_true")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", args.x64)
     import jax.numpy as jnp
 
-    for n in (int(s) for s in args.n.split(",")):
+    for n in args.n:
         n_nodes = n // 2 + n // 8 + 10
         key = jax.random.PRNGKey(0)
         x = jnp.sort(jax.random.uniform(key, (n,), minval=5.0, maxval=n // 2))

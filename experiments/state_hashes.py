@@ -26,16 +26,35 @@ hashed as what it returns (its last good state), so a change to where it stops s
 
 Hashes depend on the CPU and on the versions of JAX and XLA: compare two files made on one machine
 with one environment, never with a file made elsewhere.
+
+An existing ``--out`` is refused, before anything is run, unless ``--overwrite``.
 """
 
 import argparse
 import hashlib
 import json
-import os
 import sys
 
 import jax
 import numpy as np
+from _entry import refuse_existing
+
+from jaxmpm.studies._output import write_text
+
+
+def _read_hashes(parser: argparse.ArgumentParser, path: str) -> dict:
+    """The hashes of ``path``, a JSON file of an earlier run; a usage error where it cannot be read or
+    is not one."""
+    try:
+        with open(path) as f:
+            hashes = json.load(f)
+    except OSError as e:
+        parser.error(f"argument --compare: cannot read {path}: {e.strerror or e}")
+    except (ValueError, UnicodeDecodeError) as e:
+        parser.error(f"argument --compare: {path} is not JSON: {e}")
+    if not isinstance(hashes, dict) or not all(isinstance(v, str) for v in hashes.values()):
+        parser.error(f"argument --compare: {path} is not a file of this script (run key: hash)")
+    return hashes
 
 
 def _hash(tree) -> str:
@@ -123,17 +142,14 @@ def _runs():
             )
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, help="the JSON file to write the hashes to")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out where it exists")
     parser.add_argument("--compare", help="a JSON file of an earlier run of this script to compare with")
-    args = parser.parse_args()
-    if os.path.exists(args.out):
-        parser.error(f"--out {args.out} exists; give a new file (the script never writes over one)")
-    earlier = None
-    if args.compare:
-        with open(args.compare) as f:
-            earlier = json.load(f)
+    args = parser.parse_args(argv)
+    refuse_existing(parser, "--out", [args.out], args.overwrite)
+    earlier = None if args.compare is None else _read_hashes(parser, args.compare)
     jax.config.update("jax_enable_x64", True)
 
     hashes = {}
@@ -142,8 +158,7 @@ def main() -> int:
         hashes[key] = _hash(tree)
         jax.clear_caches()  # each compiled program holds memory maps; a process may hold only so many
         print(f"{key}: {hashes[key]} (status {status})", flush=True)
-    with open(args.out, "x") as f:
-        json.dump(hashes, f, indent=1)
+    write_text(args.out, json.dumps(hashes, indent=1))
     if earlier is None:
         return 0
     differ = [k for k in hashes if earlier.get(k) != hashes[k]]

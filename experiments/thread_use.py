@@ -24,6 +24,7 @@ import tempfile
 import time
 
 import jax
+from _entry import check_particles, positive
 
 
 def _cpu() -> float:
@@ -57,14 +58,15 @@ def _operations(trace_dir: str) -> list[tuple[float, float, int, str]]:
     return ops
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dtype", choices=("f32", "f64"), default="f32")
-    parser.add_argument("--n", type=int, default=1_048_576)
+    parser.add_argument("--n", type=positive, default=1_048_576, help="particles (default 1,048,576)")
     parser.add_argument("--dim", type=int, choices=(1, 2, 3), default=1)
-    args = parser.parse_args()
-    jax.config.update("jax_enable_x64", args.dtype == "f64")
+    args = parser.parse_args(argv)
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    check_particles(parser, args.n, args.dim)
+    jax.config.update("jax_enable_x64", args.dtype == "f64")
     from benchmarks.bench import jaxmpm_simulate
 
     def run():
@@ -80,6 +82,10 @@ def main() -> None:
         with jax.profiler.trace(trace_dir):
             run()
         ops = _operations(trace_dir)
+    if not ops:
+        sys.exit(
+            "the profile holds no operation on XLA's threads (a run this small may not use them): raise --n"
+        )
     edges = sorted([(a, 1) for a, _, _, _ in ops] + [(b, -1) for _, b, _, _ in ops])
     running, at, busy = 0, edges[0][0], collections.Counter()
     for t, step in edges:
