@@ -6,8 +6,8 @@ the adiabatic gas, the exact traction ``-/+ sigma(t)`` at two boundary points th
 velocity, no artificial cells, no checks (jaxmpm's step also folds force that lands on a node without
 mass onto its neighbour; these codes drop it). Taichi and Warp are optional (``pip install
 jaxmpm[bench]``); each function here imports its package when called. Every function returns
-``(compile_s, run_s, F_mean)``, ``F_mean`` the mean final ``F``, which the benchmark compares across
-codes so that a wrong kernel cannot pass as a fast one.
+``(compile_s, run_s, F_mean, status)``, ``F_mean`` the mean final ``F``, which the benchmark compares
+across codes so that a wrong kernel cannot pass as a fast one.
 
 (No ``from __future__ import annotations`` here: Taichi and Warp read the kernels' annotations.)
 """
@@ -16,6 +16,8 @@ import math
 import time
 
 import numpy as np
+
+from jaxmpm.status import LEFT_GRID, NONFINITE, NONPOSITIVE_F
 
 PROBLEM = dict(beta=200.0, P0=2.0e5, gamma=1.4, p_atm=1.0e5, rho0=1.0)
 
@@ -52,6 +54,39 @@ def _initial(n: int, dtype):
     return L, X.copy(), (PROBLEM["beta"] * X).astype(dtype), np.ones(n, dtype)
 
 
+def health(x, v, F, x_tr, x_lo: float, x_hi: float, J=None) -> int:
+    """The status bits of a reference code's state, as jaxmpm's step sets them (``jaxmpm.status``).
+
+    Args:
+        x, v, F: the particles' positions, velocities and deformation gradients (any shapes).
+        x_tr: the traction points' positions (query points of the grid, as the particles are).
+        x_lo, x_hi: the grid's first and last node along each axis: a point's stencil stays on the
+            grid while ``x_lo <= x < x_hi`` (jaxmpm's grid bounds).
+        J: ``det F`` per particle in 2D and 3D; ``None``: ``F`` itself (1D).
+
+    Returns:
+        ``NONFINITE`` where ``x``, ``v``, ``F`` or ``x_tr`` is not finite, ``NONPOSITIVE_F`` where
+        ``F`` (``det F``) is not positive, ``LEFT_GRID`` where a particle or traction point is off the
+        grid's nodes, ORed; 0 for a healthy state.
+    """
+    x, v, F, x_tr = (np.asarray(a) for a in (x, v, F, x_tr))
+    J = F if J is None else np.asarray(J)
+    status = 0
+    if not all(np.isfinite(a).all() for a in (x, v, F, x_tr)):
+        status |= NONFINITE
+    if (J <= 0).any():
+        status |= NONPOSITIVE_F
+    if any(((a < x_lo) | (a >= x_hi)).any() for a in (x, x_tr)):
+        status |= LEFT_GRID
+    return status
+
+
+def grid_span(L: dict) -> tuple[float, float]:
+    """The first and last node of the grid of ``layout`` (1D) or ``layout_nd`` (along each axis)."""
+    nodes = L.get("axis_nodes", L["nodes"])
+    return L["x_min"], L["x_min"] + (nodes - 1) * L["h"]
+
+
 def boundary_stress(t: float) -> float:
     """The exact solution's stress at time ``t``.
 
@@ -82,8 +117,12 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
         fold: also fold the force off empty nodes, as jaxmpm does.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
-        mean final ``F``; with ``fold``, NaN once ``F`` is not finite or not positive.
+        ``(compile_s, run_s, F_mean, status)``: compile time (0 where nothing compiles), run time, the
+        mean final ``F`` and the final state's ``health``. A step that cannot run (NumPy's
+        ``bincount`` meets a particle off the grid, or the index of a non-finite position) ends the
+        run: the time is that of the steps before it, the status that of their state. With ``fold``,
+        the state is checked after every step, as jaxmpm does, and the run stops at the first
+        unhealthy one, ``F_mean`` NaN.
     """
     f = np.float32 if dtype == "f32" else np.float64
     L, x, v, F = _initial(n, f)
@@ -91,45 +130,53 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
     m, V0 = f(L["m"]), f(L["V0"])
     P0, gamma, p_atm = f(PROBLEM["P0"]), f(PROBLEM["gamma"]), f(PROBLEM["p_atm"])
     x_tr = np.array([0.0, L["cells"] * L["h"]], f)
+    lo, hi = grid_span(L)
+    error = None
     t0 = time.perf_counter()
-    for k in range(steps):
-        sig_t = f(boundary_stress(k * L["dt"]))
-        s_tr = (x_tr - x_min) / h
-        j = np.floor(s_tr).astype(np.int64)
-        u1 = (s_tr - j).astype(f)
-        u0 = 1 - u1
-        trac = np.array([-sig_t, sig_t], f)
-        s = (x - x_min) / h
-        i = np.floor(s).astype(np.int64)
-        w1 = (s - i).astype(f)
-        w0 = 1 - w1
-        sig = -(P0 * F**-gamma - p_atm)
-        mass = np.bincount(i, w0 * m, nodes) + np.bincount(i + 1, w1 * m, nodes)
-        mom = np.bincount(i, w0 * m * v, nodes) + np.bincount(i + 1, w1 * m * v, nodes)
-        fi = sig * V0 * F / h
-        force = np.bincount(i, fi, nodes) - np.bincount(i + 1, fi, nodes)
-        force += np.bincount(j, u0 * trac, nodes) + np.bincount(j + 1, u1 * trac, nodes)
-        active = mass > (256 * np.finfo(f).eps * m if fold else 0)
-        if fold:  # the stray force, to the left neighbour with mass first, else to the right one
-            stray = np.where(active, 0, force)
-            left_ok = np.r_[False, active[:-1]]
-            right_ok = np.r_[active[1:], False]
-            to_left = np.where(left_ok, stray, 0)
-            to_right = np.where(~left_ok & right_ok, stray, 0)
-            force = np.where(active, force, 0) + np.r_[to_left[1:], 0] + np.r_[0, to_right[:-1]]
-        safe = np.where(active, mass, 1)
-        vn = np.where(active, mom / safe, 0)
-        a = np.where(active, force / safe, 0)
-        vnew = (vn + dt * a).astype(f)
-        a = a.astype(f)
-        v = v + dt * (w0 * a[i] + w1 * a[i + 1])
-        x = x + dt * (w0 * vnew[i] + w1 * vnew[i + 1])
-        F = F * (1 + dt * (vnew[i + 1] - vnew[i]) / h)
-        x_tr = x_tr + dt * (u0 * vnew[j] + u1 * vnew[j + 1])
-        if fold and not (np.isfinite(F).all() and (F > 0).all()):  # broke down, as jaxmpm reports
-            return 0.0, time.perf_counter() - t0, float("nan")
+    try:
+        for k in range(steps):
+            sig_t = f(boundary_stress(k * L["dt"]))
+            s_tr = (x_tr - x_min) / h
+            j = np.floor(s_tr).astype(np.int64)
+            u1 = (s_tr - j).astype(f)
+            u0 = 1 - u1
+            trac = np.array([-sig_t, sig_t], f)
+            s = (x - x_min) / h
+            i = np.floor(s).astype(np.int64)
+            w1 = (s - i).astype(f)
+            w0 = 1 - w1
+            sig = -(P0 * F**-gamma - p_atm)
+            mass = np.bincount(i, w0 * m, nodes) + np.bincount(i + 1, w1 * m, nodes)
+            mom = np.bincount(i, w0 * m * v, nodes) + np.bincount(i + 1, w1 * m * v, nodes)
+            fi = sig * V0 * F / h
+            force = np.bincount(i, fi, nodes) - np.bincount(i + 1, fi, nodes)
+            force += np.bincount(j, u0 * trac, nodes) + np.bincount(j + 1, u1 * trac, nodes)
+            active = mass > (256 * np.finfo(f).eps * m if fold else 0)
+            if fold:  # the stray force, to the left neighbour with mass first, else to the right one
+                stray = np.where(active, 0, force)
+                left_ok = np.r_[False, active[:-1]]
+                right_ok = np.r_[active[1:], False]
+                to_left = np.where(left_ok, stray, 0)
+                to_right = np.where(~left_ok & right_ok, stray, 0)
+                force = np.where(active, force, 0) + np.r_[to_left[1:], 0] + np.r_[0, to_right[:-1]]
+            safe = np.where(active, mass, 1)
+            vn = np.where(active, mom / safe, 0)
+            a = np.where(active, force / safe, 0)
+            vnew = (vn + dt * a).astype(f)
+            a = a.astype(f)
+            v = v + dt * (w0 * a[i] + w1 * a[i + 1])
+            x = x + dt * (w0 * vnew[i] + w1 * vnew[i + 1])
+            F = F * (1 + dt * (vnew[i + 1] - vnew[i]) / h)
+            x_tr = x_tr + dt * (u0 * vnew[j] + u1 * vnew[j + 1])
+            if fold and health(x, v, F, x_tr, lo, hi):  # checked every step, as jaxmpm does
+                break
+    except (ValueError, IndexError) as e:  # a bincount met an index off the grid
+        error = e  # x, v, F, x_tr: the state before the step
     run_s = time.perf_counter() - t0
-    return 0.0, run_s, float(np.mean(F))
+    status = health(x, v, F, x_tr, lo, hi)
+    if error is not None and status == 0:
+        raise error
+    return 0.0, run_s, float("nan") if fold and status else float(np.mean(F)), status
 
 
 def plain_jax_spq(n: int, steps: int, dtype: str):
@@ -142,8 +189,8 @@ def plain_jax_spq(n: int, steps: int, dtype: str):
             when x64 is on).
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
-        mean final ``F``.
+        ``(compile_s, run_s, F_mean, status)``: compile time (0 where nothing compiles), run time, the
+        mean final ``F`` and the final state's ``health`` (checked after the timed run).
     """
     import jax
     import jax.numpy as jnp
@@ -194,7 +241,8 @@ def plain_jax_spq(n: int, steps: int, dtype: str):
     t1 = time.perf_counter()
     out = jax.block_until_ready(compiled(X))
     t2 = time.perf_counter()
-    return t1 - t0, t2 - t1, float(jnp.mean(out[2]))
+    x, v, F, x_tr = (np.asarray(a) for a in out)
+    return t1 - t0, t2 - t1, float(np.mean(F)), health(x, v, F, x_tr, *grid_span(L))
 
 
 _TAICHI = {}
@@ -309,8 +357,8 @@ def taichi_spq(n: int, steps: int, dtype: str):
         dtype: ``"f32"`` or ``"f64"``. Taichi runs one float type per process.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
-        mean final ``F``.
+        ``(compile_s, run_s, F_mean, status)``: compile time (0 where nothing compiles), run time, the
+        mean final ``F`` and the final state's ``health`` (checked after the timed run).
     """
     ti, p2g, grid, g2p = _taichi_kernels(dtype)
     f = np.float32 if dtype == "f32" else np.float64
@@ -362,7 +410,8 @@ def taichi_spq(n: int, steps: int, dtype: str):
     ti.sync()
     t2 = time.perf_counter()
     run_s = (t2 - t1) * steps / max(steps - 1, 1)  # the compiled steps, scaled to ``steps``
-    return t1 - t0, run_s, float(np.mean(F.to_numpy()))
+    state = [a.to_numpy() for a in (x, v, F, x_tr)]
+    return t1 - t0, run_s, float(np.mean(state[2])), health(*state, *grid_span(L))
 
 
 _WARP = {}
@@ -485,8 +534,8 @@ def warp_spq(n: int, steps: int, dtype: str):
         dtype: ``"f32"`` or ``"f64"``.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time (0 where nothing compiles), run time, and the
-        mean final ``F``.
+        ``(compile_s, run_s, F_mean, status)``: compile time (0 where nothing compiles), run time, the
+        mean final ``F`` and the final state's ``health`` (checked after the timed run).
     """
     wp, T, p2g, grid, g2p = _warp_kernels(dtype)
     f = np.float32 if dtype == "f32" else np.float64
@@ -516,7 +565,9 @@ def warp_spq(n: int, steps: int, dtype: str):
     wp.synchronize()
     t2 = time.perf_counter()
     run_s = (t2 - t1) * steps / max(steps - 1, 1)
-    return t1 - t0, run_s, float(np.mean(F.numpy()))
+    state = [a.numpy() for a in (x, v, F, x_tr)]
+    return t1 - t0, run_s, float(np.mean(state[2])), health(*state, *grid_span(L))
 
 
 BASELINES = {"NumPy": numpy_spq, "plain JAX": plain_jax_spq, "Taichi": taichi_spq, "Warp": warp_spq}
+"""The 1D reference codes by name, each ``(n, steps, dtype) -> (compile_s, run_s, F_mean, status)``."""

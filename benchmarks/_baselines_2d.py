@@ -18,9 +18,11 @@ the check that both, and ``jaxmpm spq``, compute one method. (The 1D reference c
 force. In 2D that loses part of the traction on every high face from the first step, the faces
 accelerate outward, and the run breaks down: at step 68 of 100 at 102,400 particles.)
 
-Each function returns ``(compile_s, run_s, F_mean)``, ``F_mean`` the mean over every entry of the
-final ``(n, dim, dim)`` F (what the benchmark reports for jaxmpm's rows), so that the benchmark can
-compare the codes and a wrong kernel cannot pass as a fast one. Taichi and Warp are optional
+Each function returns ``(compile_s, run_s, F_mean, status)``, ``F_mean`` the mean over every entry of
+the final ``(n, dim, dim)`` F (what the benchmark reports for jaxmpm's rows), so that the benchmark can
+compare the codes and a wrong kernel cannot pass as a fast one, and ``status`` the final state's
+health in jaxmpm's status bits (``_baselines.health``, with ``det F`` for F > 0), checked after the
+timed steps. Taichi and Warp are optional
 (``pip install jaxmpm[bench]``); each function imports its package when called.
 
 (No ``from __future__ import annotations`` here: Taichi and Warp read the kernels' annotations.)
@@ -32,7 +34,7 @@ import time
 
 import numpy as np
 
-from ._baselines import PROBLEM
+from ._baselines import PROBLEM, grid_span, health
 
 PROBLEM_ND = dict(PROBLEM, beta=5.0)
 """The 2D and 3D problem: the 1D benchmark's gas, with ``beta = 5 /s`` instead of 200.
@@ -326,8 +328,11 @@ def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = Fals
         fold: move force off empty nodes as jaxmpm does, instead of clamping to the body's nodes.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time (0: nothing compiles), run time, and the mean
-        of the final F; with ``fold``, NaN once F is not finite or ``det F`` not positive.
+        ``(compile_s, run_s, F_mean, status)``: compile time (0: nothing compiles), run time, the mean
+        of the final F and the final state's ``health`` (``_baselines.health``). A step that cannot
+        run (a ``bincount`` meets an index off the grid) ends the run with the state before it. With
+        ``fold`` the state is checked after every step, as jaxmpm does, and the run stops at the
+        first unhealthy one, ``F_mean`` NaN.
     """
     f = np.float32 if dtype == "f32" else np.float64
     L = layout_nd(n, dim)
@@ -340,45 +345,53 @@ def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = Fals
     m, V0 = f(L["m"]), f(L["V0"])
     P0, gamma, p_atm = f(P["P0"]), f(P["gamma"]), f(P["p_atm"])
     tiny = 256 * np.finfo(f).eps * m
+    lo, hi = grid_span(L)
+    error = None
     t0 = time.perf_counter()
-    for k in range(steps):
-        T = f(face_stress(k * L["dt"], dim))
-        idx, w, dw = _stencil(x, L, f)
-        t_idx, t_w, _ = _stencil(x_tr, L, f, gradients=False)
-        t_to = t_idx if fold else _stencil(x_tr, L, f, gradients=False, box=True)[0]
-        J = _det(F)
-        fi = -(P0 * J**-gamma - p_atm) * V0 * J  # sigma_p V_p, sigma = that times I
-        flat, t_flat = idx.ravel(), t_to.ravel()
-        mass = np.bincount(flat, (w * m).ravel(), nodes)
-        mom = np.stack(
-            [np.bincount(flat, (w * (m * v[:, a])[:, None]).ravel(), nodes) for a in range(dim)], 1
-        )
-        tr = t_vec * T
-        force = np.stack(
-            [
-                np.bincount(t_flat, (t_w * tr[:, a][:, None]).ravel(), nodes)
-                - np.bincount(flat, (dw[:, :, a] * fi[:, None]).ravel(), nodes)
-                for a in range(dim)
-            ],
-            1,
-        ).astype(f)
-        active = mass > (tiny if fold else 0)
-        if fold:
-            force = fold_massless_nd(force, active, (L["axis_nodes"],) * dim)
-        safe = np.where(active, mass, 1)[:, None]
-        vn = np.where(active[:, None], mom / safe, 0)
-        acc = np.where(active[:, None], force / safe, 0).astype(f)
-        vnew = (vn + dt * acc).astype(f)
-        vg, ag = vnew[idx], acc[idx]  # (n, 2^dim, dim)
-        v = v + dt * np.einsum("nk,nkd->nd", w, ag)
-        x = x + dt * np.einsum("nk,nkd->nd", w, vg)
-        grad_v = np.einsum("nka,nkb->nab", vg, dw)
-        F = F + dt * np.matmul(grad_v, F)
-        x_tr = x_tr + dt * np.einsum("nk,nkd->nd", t_w, vnew[t_idx])
-        if fold and not (np.isfinite(F).all() and (_det(F) > 0).all()):  # as jaxmpm reports it
-            return 0.0, time.perf_counter() - t0, float("nan")
+    try:
+        for k in range(steps):
+            T = f(face_stress(k * L["dt"], dim))
+            idx, w, dw = _stencil(x, L, f)
+            t_idx, t_w, _ = _stencil(x_tr, L, f, gradients=False)
+            t_to = t_idx if fold else _stencil(x_tr, L, f, gradients=False, box=True)[0]
+            J = _det(F)
+            fi = -(P0 * J**-gamma - p_atm) * V0 * J  # sigma_p V_p, sigma = that times I
+            flat, t_flat = idx.ravel(), t_to.ravel()
+            mass = np.bincount(flat, (w * m).ravel(), nodes)
+            mom = np.stack(
+                [np.bincount(flat, (w * (m * v[:, a])[:, None]).ravel(), nodes) for a in range(dim)], 1
+            )
+            tr = t_vec * T
+            force = np.stack(
+                [
+                    np.bincount(t_flat, (t_w * tr[:, a][:, None]).ravel(), nodes)
+                    - np.bincount(flat, (dw[:, :, a] * fi[:, None]).ravel(), nodes)
+                    for a in range(dim)
+                ],
+                1,
+            ).astype(f)
+            active = mass > (tiny if fold else 0)
+            if fold:
+                force = fold_massless_nd(force, active, (L["axis_nodes"],) * dim)
+            safe = np.where(active, mass, 1)[:, None]
+            vn = np.where(active[:, None], mom / safe, 0)
+            acc = np.where(active[:, None], force / safe, 0).astype(f)
+            vnew = (vn + dt * acc).astype(f)
+            vg, ag = vnew[idx], acc[idx]  # (n, 2^dim, dim)
+            v = v + dt * np.einsum("nk,nkd->nd", w, ag)
+            x = x + dt * np.einsum("nk,nkd->nd", w, vg)
+            grad_v = np.einsum("nka,nkb->nab", vg, dw)
+            F = F + dt * np.matmul(grad_v, F)
+            x_tr = x_tr + dt * np.einsum("nk,nkd->nd", t_w, vnew[t_idx])
+            if fold and health(x, v, F, x_tr, lo, hi, _det(F)):  # checked every step, as jaxmpm does
+                break
+    except (ValueError, IndexError) as e:  # a bincount met an index off the grid
+        error = e  # x, v, F, x_tr: the state before the step
     run_s = time.perf_counter() - t0
-    return 0.0, run_s, float(np.mean(F))
+    status = health(x, v, F, x_tr, lo, hi, _det(F))
+    if error is not None and status == 0:
+        raise error
+    return 0.0, run_s, float("nan") if fold and status else float(np.mean(F)), status
 
 
 def plain_jax_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
@@ -392,7 +405,8 @@ def plain_jax_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
         dim: 2 or 3.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: compile time, run time, and the mean of the final F.
+        ``(compile_s, run_s, F_mean, status)``: compile time, run time, the mean of the final F and
+        the final state's ``health`` (checked after the timed run).
     """
     import jax
     import jax.numpy as jnp
@@ -479,7 +493,8 @@ def plain_jax_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
     t1 = time.perf_counter()
     out = jax.block_until_ready(compiled(X, x_tr, t_vec))
     t2 = time.perf_counter()
-    return t1 - t0, t2 - t1, float(jnp.mean(out[2]))
+    x, v, F, x_tr = (np.asarray(a) for a in out)
+    return t1 - t0, t2 - t1, float(np.mean(F)), health(x, v, F, x_tr, *grid_span(L), _det(F))
 
 
 _TAICHI_ND = {}
@@ -647,8 +662,9 @@ def taichi_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
         dim: 2 or 3.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: the first step's time (it compiles the kernels), the run
-        time (the compiled steps, scaled to ``steps``), and the mean of the final F.
+        ``(compile_s, run_s, F_mean, status)``: the first step's time (it compiles the kernels), the run
+        time (the compiled steps, scaled to ``steps``), the mean of the final F and the final state's
+        ``health`` (checked after the timed run).
     """
     ti, p2g, grid, g2p = _taichi_kernels_nd(dtype, dim)
     f = np.float32 if dtype == "f32" else np.float64
@@ -690,7 +706,8 @@ def taichi_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
     ti.sync()
     t2 = time.perf_counter()
     run_s = (t2 - t1) * steps / max(steps - 1, 1)
-    return t1 - t0, run_s, float(np.mean(F.to_numpy()))
+    x, v, F, x_tr = (a.to_numpy() for a in (x, v, F, x_tr))
+    return t1 - t0, run_s, float(np.mean(F)), health(x, v, F, x_tr, *grid_span(L), _det(F))
 
 
 _WARP_ND = {}
@@ -882,8 +899,9 @@ def warp_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
         dim: 2 or 3.
 
     Returns:
-        ``(compile_s, run_s, F_mean)``: the first step's time (it builds the kernels), the run time
-        (the compiled steps, scaled to ``steps``), and the mean of the final F.
+        ``(compile_s, run_s, F_mean, status)``: the first step's time (it builds the kernels), the run time
+        (the compiled steps, scaled to ``steps``), the mean of the final F and the final state's
+        ``health`` (checked after the timed run).
     """
     wp, T, Vec, Mat, p2g, traction, grid, g2p, move_traction = _warp_kernels_nd(dtype, dim)
     f = np.float32 if dtype == "f32" else np.float64
@@ -922,7 +940,8 @@ def warp_spq_nd(n: int, steps: int, dtype: str, dim: int = 2):
     wp.synchronize()
     t2 = time.perf_counter()
     run_s = (t2 - t1) * steps / max(steps - 1, 1)
-    return t1 - t0, run_s, float(np.mean(F.numpy()))
+    x, v, F, x_tr = (a.numpy() for a in (x, v, F, x_tr))
+    return t1 - t0, run_s, float(np.mean(F)), health(x, v, F, x_tr, *grid_span(L), _det(F))
 
 
 BASELINES_ND = {
@@ -931,4 +950,5 @@ BASELINES_ND = {
     "Taichi": taichi_spq_nd,
     "Warp": warp_spq_nd,
 }
-"""The 2D/3D reference codes by name, each ``(n, steps, dtype, dim) -> (compile_s, run_s, F_mean)``."""
+"""The 2D/3D reference codes by name, each ``(n, steps, dtype, dim) -> (compile_s, run_s, F_mean,
+status)``."""

@@ -121,6 +121,53 @@ def steps_for(n: int, steps: int) -> int:
     return steps if n < 500_000 else max(10, steps // 4)
 
 
+def reach_cells(steps: int) -> float:
+    """How far, in cells, the exact solution carries the 1D body's ends in ``steps`` steps: ``beta t``
+    at ``t = steps dt``, ``dt = 0.2 h / (c0 + beta)`` (``layout``), whatever the size.
+
+    Args:
+        steps: the steps run.
+
+    Returns:
+        Cells.
+    """
+    c0 = math.sqrt(PROBLEM["gamma"] * PROBLEM["P0"] / PROBLEM["rho0"])
+    return PROBLEM["beta"] * 0.2 * steps / (c0 + PROBLEM["beta"])
+
+
+def stays_on_grid(n: int, steps: int) -> bool:
+    """Whether the exact solution keeps the 1D body of ``n`` particles on its grid (``layout``'s
+    ``pad`` cells beyond each end) for the steps a run of ``steps`` takes (``steps_for``). Where it
+    does not, every code breaks down (a particle off the grid) and the run measures nothing.
+
+    Args:
+        n: particles (even).
+        steps: the steps asked for.
+
+    Returns:
+        ``True`` when the body's ends stay short of the grid's last nodes.
+    """
+    return reach_cells(steps_for(n, steps)) < n // 2 // 8 + 4  # layout's pad, in integers (any n)
+
+
+def smallest_size(steps: int) -> int:
+    """The fewest particles (even) whose body stays on its grid for ``steps`` steps (``stays_on_grid``).
+
+    Args:
+        steps: the steps asked for.
+
+    Returns:
+        Particles.
+    """
+    need = math.floor(reach_cells(steps)) + 1  # pad = cells // 8 + 4 must reach this
+    n = 2 * max(1, 8 * (need - 4))
+    if n >= 500_000:  # a quarter of the steps from there on (steps_for)
+        n = max(500_000, 2 * max(1, 8 * (math.floor(reach_cells(steps_for(500_000, steps))) + 1 - 4)))
+    while not stays_on_grid(n, steps):  # (exact above; a guard against an off-by-one)
+        n += 2
+    return n
+
+
 def available(code: str) -> bool:
     """Whether a code can run here: ``taichi`` and ``warp`` only when installed, the others always.
 
@@ -435,64 +482,64 @@ def worker(
     jax.config.update("jax_enable_x64", dtype == "f64")
     rows = []
 
-    def add(code, n, n_steps, result, dim=1):
+    def add(code, n, n_steps, result, dim=1, error=None):
         compile_s, run_s, F_mean = result[:3]
-        # a reference code has no checks: a run that broke down shows as a non-finite F
-        status = result[3] if len(result) > 3 else (0 if math.isfinite(F_mean) else NONFINITE)
-        rows.append(
-            dict(
-                code=code,
-                dtype=dtype,
-                particles=n,
-                steps=n_steps,
-                compile_s=compile_s,
-                run_s=run_s,
-                Mpsps=n * n_steps / run_s / 1e6,
-                F_mean=F_mean,
-                status=status,
-                dim=dim,
-            )
+        # every code's own health check (jaxmpm's status bits); a mean F that is not finite is one too
+        status = (result[3] if len(result) > 3 else 0) | (0 if math.isfinite(F_mean) else NONFINITE)
+        healthy = status == 0 and math.isfinite(run_s) and run_s > 0
+        row = dict(
+            code=code,
+            dtype=dtype,
+            particles=n,
+            steps=n_steps,
+            compile_s=compile_s,
+            run_s=run_s,
+            Mpsps=n * n_steps / run_s / 1e6 if healthy else None,  # a broken run has no throughput
+            F_mean=F_mean,
+            status=status,
+            dim=dim,
         )
+        if error is not None:
+            row["error"] = error
+        rows.append(row)
+
+    def reference(code, n, n_steps, dim, fold=False):
+        """A reference code's run: ``(result, error)``; one that raised is NONFINITE, its error kept."""
+        try:
+            if dim == 1:
+                return BASELINES[code](n, n_steps, dtype, **({"fold": True} if fold else {})), None
+            return BASELINES_ND[code](n, n_steps, dtype, dim, **({"fold": True} if fold else {})), None
+        except (ValueError, IndexError) as e:  # NumPy's bincount meets the NaN of a breakdown
+            return (0.0, float("nan"), float("nan"), NONFINITE), f"{type(e).__name__}: {e}"
 
     folded = {}
-    for n in sizes:
-        n_steps = steps_for(n, steps)
-        for code in ("numpy", "jax", "taichi", "warp"):
-            if code in codes and available(code):
-                try:
-                    result = BASELINES[_BASELINE_CODE[code]](n, n_steps, dtype)
-                except (ValueError, IndexError):  # NumPy's bincount meets the NaN of a breakdown
-                    result = (0.0, float("nan"), float("nan"))
-                add(_BASELINE_CODE[code], n, n_steps, result)
-        # What jaxmpm spq must reproduce (see agreement): in float64, where round-off stays small;
-        # float32 runs of this problem part ways at the 1e-3 level whatever the code (see README).
-        if "jaxmpm" in codes and "numpy" in codes and dtype == "f64":
-            folded[(1, n)] = BASELINES["NumPy"](n, n_steps, dtype, fold=True)[2]
-        if "jaxmpm" in codes:
-            for name in interpolators:
-                add(f"jaxmpm {name}", n, n_steps, jaxmpm_simulate(name, n, n_steps))
-            for name in interpolators:
-                add(f"jaxmpm {name}, one step a call", n, n_steps, jaxmpm_step(name, n, n_steps))
-            jax.clear_caches()
-    for dim, dim_sizes in ((2, sizes_2d), (3, sizes_3d)):
+    for dim, dim_sizes in ((1, sizes), (2, sizes_2d), (3, sizes_3d)):
+        x = _suffix(dim)
         for n in dim_sizes:
             n_steps = steps_for(n, steps)
             for code in ("numpy", "jax", "taichi", "warp"):
                 if code in codes and available(code):
-                    try:
-                        result = BASELINES_ND[_BASELINE_CODE[code]](n, n_steps, dtype, dim)
-                    except (ValueError, IndexError):  # NumPy's bincount meets the NaN of a breakdown
-                        result = (0.0, float("nan"), float("nan"))
-                    add(f"{_BASELINE_CODE[code]} {dim}D", n, n_steps, result, dim)
-            if "jaxmpm" in codes and "numpy" in codes and dtype == "f64":
-                folded[(dim, n)] = BASELINES_ND["NumPy"](n, n_steps, dtype, dim, fold=True)[2]
+                    result, error = reference(_BASELINE_CODE[code], n, n_steps, dim)
+                    add(_BASELINE_CODE[code] + x, n, n_steps, result, dim, error)
+            # What jaxmpm spq must reproduce (see agreement): in float64, where round-off stays small;
+            # float32 runs of this problem part ways at the 1e-3 level whatever the code (see README).
+            # A fold run that breaks down is kept with its status (agreement names the size it leaves out).
+            if "jaxmpm" in codes and "spq" in interpolators and "numpy" in codes and dtype == "f64":
+                result, error = reference("NumPy", n, n_steps, dim, fold=True)
+                status = result[3] | (0 if math.isfinite(result[2]) else NONFINITE)
+                folded[(dim, n)] = dict(
+                    F_mean=result[2], status=status, **({"error": error} if error else {})
+                )
             if "jaxmpm" in codes:
                 for name in interpolators:
-                    add(f"jaxmpm {name} {dim}D", n, n_steps, jaxmpm_simulate(name, n, n_steps, dim=dim), dim)
+                    add(f"jaxmpm {name}{x}", n, n_steps, jaxmpm_simulate(name, n, n_steps, dim=dim), dim)
+                if dim == 1:
+                    for name in interpolators:
+                        add(f"jaxmpm {name}, one step a call", n, n_steps, jaxmpm_step(name, n, n_steps))
             jax.clear_caches()
     out = dict(
         rows=rows,
-        numpy_with_fold=[dict(dtype=dtype, particles=n, F_mean=F, dim=dim) for (dim, n), F in folded.items()],
+        numpy_with_fold=[dict(dtype=dtype, particles=n, dim=dim, **q) for (dim, n), q in folded.items()],
     )
     if extras and "jaxmpm" in codes:
         if dtype == "f64":
@@ -535,7 +582,9 @@ def run(
     Returns:
         The result: ``date``, ``machine``, ``versions``, ``copy_bandwidth_GBps``, the bandwidth
         bounds (``bandwidth_bound_Mpsps_<dtype>``, in 2D and 3D ``..._<dtype>_2d``, ``_3d``),
-        ``rounds``, ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble`` and ``agreement``.
+        ``rounds``, ``rows``, ``numpy_with_fold``, ``reverse``, ``ensemble``, ``agreement``,
+        ``agreement_notes`` (what it could not compare), ``agreement_bound`` (``AGREEMENT_BOUND``) and
+        ``disagreement`` (the groups beyond it; empty when the codes agree).
 
     Raises:
         WorkerError: a benchmark process failed.
@@ -586,21 +635,24 @@ def run(
         for dim, dim_sizes in ((2, sizes_2d), (3, sizes_3d)):
             if dim_sizes:
                 result[f"bandwidth_bound_Mpsps_{dtype}_{dim}d"] = bandwidth_bound(bw, dtype, dim)
-    result["agreement"] = agreement(result["rows"], result["numpy_with_fold"])
+    result["agreement"], result["agreement_notes"] = _agreement(result["rows"], result["numpy_with_fold"])
+    result["agreement_bound"] = dict(AGREEMENT_BOUND)
+    result["disagreement"] = disagreement(result["agreement"])
     return result
 
 
 def best_of(rounds_rows: list[list[dict]]) -> list[dict]:
-    """Each code's fastest round: the rows of several rounds of one float type merged.
+    """Each code's fastest healthy round: the rows of several rounds of one float type merged.
 
     Args:
         rounds_rows: the rows of each round (the same codes, dimensions and sizes in each).
 
     Returns:
-        One row per code, dimension and size, in the first round's order: the row of the round with
-        the shortest ``run_s`` (a round whose run time is not finite, a reference code's run that
-        broke down, is taken only when every round's is), with ``rounds``, how many rounds it is the
-        best of, and ``Mpsps_rounds``, every round's throughput in order.
+        One row per code, dimension and size, in the first round's order: the row of the healthy
+        round (``status`` 0, a finite run time) with the shortest ``run_s``; where no round is
+        healthy, the first round's row (it broke down: no throughput). Each with ``rounds``, how many
+        rounds it is the best of, and ``Mpsps_rounds``, every round's throughput in order (``None`` for
+        a round that broke down).
     """
     key = lambda r: (r["code"], r.get("dim", 1), r["particles"])  # noqa: E731
     found = {}
@@ -609,8 +661,8 @@ def best_of(rounds_rows: list[list[dict]]) -> list[dict]:
             found.setdefault(key(r), []).append(r)
     out = []
     for runs in found.values():
-        finite = [r for r in runs if math.isfinite(r["run_s"])]
-        best = dict(min(finite, key=lambda r: r["run_s"]) if finite else runs[0])
+        healthy = [r for r in runs if r["status"] == 0 and math.isfinite(r["run_s"])]
+        best = dict(min(healthy, key=lambda r: r["run_s"]) if healthy else runs[0])
         best["rounds"] = len(runs)
         best["Mpsps_rounds"] = [r["Mpsps"] for r in runs]
         out.append(best)
@@ -648,48 +700,141 @@ def _suffix(dim: int) -> str:
     return "" if dim == 1 else f" {dim}D"
 
 
+AGREEMENT_BOUND = {"f64": 1e-10}
+"""The largest relative difference of the mean final F that counts as round-off, per float type: in
+float64 the reference codes agree within 2.2e-16 to 1.6e-15 at 1k to 1M particles (``docs/bench*``;
+the tests ask for 1e-13 at a few hundred particles and a few steps), and ``jaxmpm spq`` and the NumPy
+code with the fold within 1.8e-15 there, 2.1e-13 in a run of 100 particles over 180 steps close to
+its breakdown (the fold's threshold on a node's mass); a wrong kernel differs by 1e-6 or more. Float32
+runs of this problem part ways at the 1e-3 level whatever the code: their differences are reported,
+never judged (``disagreement``)."""
+
+
+def _agreement(rows, numpy_with_fold=()) -> tuple[dict, dict]:
+    """``(agreement, agreement_notes)``: see ``agreement`` and ``agreement_notes``."""
+    out, notes = {}, {}
+    for dtype in sorted({r["dtype"] for r in rows}):
+        worst, said = {}, {}
+        for dim in sorted({r.get("dim", 1) for r in rows if r["dtype"] == dtype}):
+            x = _suffix(dim)
+            here = [r for r in rows if r["dtype"] == dtype and r.get("dim", 1) == dim]
+            reference = {c + x for c in _BASELINE_CODE.values()}
+            fold = {
+                q["particles"]: dict(q, code=f"NumPy{x} with the fold")
+                for q in numpy_with_fold
+                if q["dtype"] == dtype and q.get("dim", 1) == dim
+            }
+            spq = [
+                r
+                for r in here
+                if r["code"] == f"jaxmpm spq{x}" or (dim == 1 and r["code"].startswith("jaxmpm spq,"))
+            ]
+            groups = []
+            if any(r["code"] in reference for r in here):
+                numpy = {r["particles"]: r for r in here if r["code"] == "NumPy" + x}
+                others = [r for r in here if r["code"] in reference and r["code"] != "NumPy" + x]
+                groups.append((f"reference codes{x}", numpy, others, f"NumPy{x}"))
+            if fold and spq:
+                groups.append(
+                    (f"jaxmpm spq{x} vs NumPy{x} with the fold", fold, spq, f"NumPy{x} with the fold")
+                )
+            for group, refs, others, ref_name in groups:
+                diffs, lines = [], []
+                for r in others:
+                    ref = refs.get(r["particles"])
+                    if ref is None:
+                        continue
+                    broken = [q for q in (ref, r) if q.get("status", 0) != 0]
+                    if broken:
+                        lines.append(
+                            f"{r['code']} at {r['particles']:,} left out: "
+                            + ", ".join(f"{q['code']} broke down (status {q['status']})" for q in broken)
+                        )
+                        continue
+                    a, b = r["F_mean"], ref["F_mean"]
+                    diff = abs(a - b) / abs(b) if b != 0 else (0.0 if a == b else math.inf)
+                    diffs.append(diff if math.isfinite(diff) else math.inf)  # NaN: a disagreement
+                if diffs:
+                    worst[group] = max(diffs)
+                else:
+                    why = (
+                        "the NumPy code, the reference, was not among --codes"
+                        if not refs
+                        else f"fewer than two healthy codes (only {ref_name})"
+                        if not others
+                        else "no healthy pair of runs"
+                    )
+                    lines.insert(0, f"nothing to compare: {why}")
+                if lines:
+                    said[group] = lines
+        out[dtype] = worst
+        if said:
+            notes[dtype] = said
+    return out, notes
+
+
 def agreement(rows, numpy_with_fold=()) -> dict:
     """Largest relative difference of the mean final F, per dtype: among the reference codes (one
-    algorithm, so they agree to round-off and a wrong kernel shows), and of ``jaxmpm spq`` from the
-    NumPy code with jaxmpm's fold of force off empty nodes (``numpy_spq(fold=True)``: the same
-    method exactly), each per dimension. In 1D, ``jaxmpm spq`` against the reference codes' standard
-    algorithm differs by that fold, a real difference while the free end enters a new cell. In 2D
-    and 3D the reference codes put a traction point's force on the nearest of the body's nodes,
-    which is what the fold does in that problem (``benchmarks._baselines_2d``).
+    algorithm, so they agree to round-off and a wrong kernel shows), each against the NumPy code, and
+    of ``jaxmpm spq`` from the NumPy code with jaxmpm's fold of force off empty nodes
+    (``numpy_spq(fold=True)``: the same method exactly), each per dimension. In 1D, ``jaxmpm spq``
+    against the reference codes' standard algorithm differs by that fold, a real difference while
+    the free end enters a new cell. In 2D and 3D the reference codes put a traction point's force on
+    the nearest of the body's nodes, which is what the fold does in that problem
+    (``benchmarks._baselines_2d``).
+
+    Only healthy runs (status 0) are compared, at the same size; a size where one side broke down is
+    left out, and ``agreement_notes`` names it. A difference that is not a number (NaN) counts as
+    ``inf``: a disagreement.
 
     Args:
         rows: the benchmark's rows (a row without ``dim`` is 1D).
         numpy_with_fold: the mean final F of the NumPy code with the fold, per dtype, size and
-            dimension (without ``dim``: 1D).
+            dimension (without ``dim``: 1D), with its ``status`` (without: healthy).
 
     Returns:
-        ``{dtype: {group: largest relative difference}}`` over the healthy runs; the groups are
-        ``reference codes`` and ``jaxmpm spq vs NumPy with the fold`` (1D), ``reference codes 2D``
-        and ``jaxmpm spq 2D vs NumPy 2D with the fold``, and the same for 3D.
+        ``{dtype: {group: largest relative difference}}``, a group only where at least one pair of
+        healthy runs was compared; the groups are ``reference codes`` and ``jaxmpm spq vs NumPy with
+        the fold`` (1D), ``reference codes 2D`` and ``jaxmpm spq 2D vs NumPy 2D with the fold``, and
+        the same for 3D.
+    """
+    return _agreement(rows, numpy_with_fold)[0]
+
+
+def agreement_notes(rows, numpy_with_fold=()) -> dict:
+    """What the agreement could not compare, per dtype and group (``agreement``).
+
+    Args:
+        rows: as for ``agreement``.
+        numpy_with_fold: as for ``agreement``.
+
+    Returns:
+        ``{dtype: {group: [note, ...]}}``: ``nothing to compare: WHY`` for a group of which no pair of
+        healthy runs was compared (no reference code but NumPy, NumPy not among the codes, or every
+        pair with a side that broke down), and ``CODE at N left out: ... broke down (status S)`` for
+        each size left out.
+    """
+    return _agreement(rows, numpy_with_fold)[1]
+
+
+def disagreement(agree: dict) -> dict:
+    """The groups of ``agreement`` whose codes disagree beyond round-off (``AGREEMENT_BOUND``; float64
+    only: float32 differences are reported, not judged).
+
+    Args:
+        agree: what ``agreement`` returns.
+
+    Returns:
+        ``{dtype: {group: largest relative difference}}``; empty when every group agrees.
     """
     out = {}
-    for dtype in sorted({r["dtype"] for r in rows}):
-        worst = {}
-        for dim in sorted({r.get("dim", 1) for r in rows if r["dtype"] == dtype}):
-            x = _suffix(dim)
-            reference = {c + x for c in _BASELINE_CODE.values()}
-            groups = (f"reference codes{x}", f"jaxmpm spq{x} vs NumPy{x} with the fold")
-            for r in rows:
-                if r["dtype"] != dtype or r.get("dim", 1) != dim or r["status"] != 0:
-                    continue
-                if r["code"] in reference:
-                    group = groups[0]
-                    refs = [q for q in rows if q["code"] == "NumPy" + x and q["dtype"] == dtype]
-                elif r["code"] == f"jaxmpm spq{x}" or (dim == 1 and r["code"].startswith("jaxmpm spq,")):
-                    group = groups[1]
-                    refs = [q for q in numpy_with_fold if q["dtype"] == dtype and q.get("dim", 1) == dim]
-                else:
-                    continue
-                ref = next((q for q in refs if q["particles"] == r["particles"]), None)
-                if ref is not None and math.isfinite(ref["F_mean"]):
-                    diff = abs(r["F_mean"] - ref["F_mean"]) / abs(ref["F_mean"])
-                    worst[group] = max(worst.get(group, 0.0), diff)
-        out[dtype] = worst
+    for dtype, groups in agree.items():
+        bound = AGREEMENT_BOUND.get(dtype)
+        if bound is None:
+            continue
+        bad = {g: d for g, d in groups.items() if not d <= bound}  # NaN too
+        if bad:
+            out[dtype] = bad
     return out
 
 
@@ -705,18 +850,26 @@ def _versions() -> dict:
     return out
 
 
+def _healthy(r: dict) -> bool:
+    """A row of a run that finished healthy: status 0 and a throughput (never one that broke down)."""
+    return r["status"] == 0 and r.get("Mpsps") is not None and math.isfinite(r["Mpsps"])
+
+
 def _round_ratios(rows: list[dict], n: int, x: str) -> str:
     """The lowest and highest ratio of ``jaxmpm spq`` to the faster of Taichi and Warp over the
-    rounds of a several-round run (each round's own runs), at ``n`` particles; '' for one round."""
+    rounds of a several-round run (each round's own runs, a round where a side broke down left out),
+    at ``n`` particles; '' for one round."""
     at_n = [r for r in rows if r["particles"] == n and len(r.get("Mpsps_rounds", ())) > 1]
     mine = [r["Mpsps_rounds"] for r in at_n if r["code"] == "jaxmpm spq" + x]
     fast = [r["Mpsps_rounds"] for r in at_n if r["code"] in ("Taichi" + x, "Warp" + x)]
     if not mine or not fast:
         return ""
+
+    def ok(value):
+        return value is not None and math.isfinite(value)
+
     ratios = [
-        m / max(f[i] for f in fast)
-        for i, m in enumerate(mine[0])
-        if math.isfinite(m) and all(math.isfinite(f[i]) for f in fast)
+        m / max(f[i] for f in fast) for i, m in enumerate(mine[0]) if ok(m) and all(ok(f[i]) for f in fast)
     ]
     return f"{min(ratios):.2f}-{max(ratios):.2f}" if ratios else ""
 
@@ -736,16 +889,26 @@ def _throughput_table(result: dict, dtype: str, dim: int) -> list[str]:
             r = next((r for r in rows if r["code"] == code and r["particles"] == n), None)
             if r is None:
                 cells.append("")
-                continue
-            flag = "" if r["status"] == 0 else f" status {r['status']}"
-            cells.append(f"{r['Mpsps']:.1f} ({r['compile_s']:.2f}){flag}")
+            elif _healthy(r):
+                cells.append(f"{r['Mpsps']:.1f} ({r['compile_s']:.2f})")
+            else:  # no throughput for a run that broke down
+                cells.append(f"broke down (status {r['status']})")
         lines.append(f"| {code} | " + " | ".join(cells) + " |")
-    ratio = []
+    ratio, why = [], []
     for n in sizes:
-        at_n = [r for r in rows if r["particles"] == n and math.isfinite(r["Mpsps"])]
-        fast = [r["Mpsps"] for r in at_n if r["code"] in ("Taichi" + x, "Warp" + x)]
-        mine = [r["Mpsps"] for r in at_n if r["code"] == "jaxmpm spq" + x]
-        ratio.append(f"{mine[0] / max(fast):.2f}" if fast and mine else "")
+        at_n = [r for r in rows if r["particles"] == n]
+        fast = [r for r in at_n if r["code"] in ("Taichi" + x, "Warp" + x)]
+        mine = [r for r in at_n if r["code"] == "jaxmpm spq" + x]
+        broken = [r for r in fast + mine if not _healthy(r)]
+        if not fast or not mine:
+            ratio.append("")
+        elif broken:  # a ratio never uses a run that broke down
+            ratio.append("-")
+            why.append(
+                f"{n:,}: " + ", ".join(f"{r['code']} broke down (status {r['status']})" for r in broken)
+            )
+        else:
+            ratio.append(f"{mine[0]['Mpsps'] / max(r['Mpsps'] for r in fast):.2f}")
     if any(ratio):
         lines.append("| jaxmpm spq / faster of Taichi, Warp | " + " | ".join(ratio) + " |")
         spread = [_round_ratios(rows, n, x) for n in sizes]
@@ -757,6 +920,8 @@ def _throughput_table(result: dict, dtype: str, dim: int) -> list[str]:
             f"| bandwidth bound ({result['copy_bandwidth_GBps']:.1f} GB/s copy, "
             f"{PASSES} passes over x, v, F) | " + " | ".join(f"{bound:.0f}" for _ in sizes) + " |"
         )
+    if why:
+        lines += ["", "No ratio (`-`) where a run of it broke down: at " + "; ".join(why) + "."]
     return lines
 
 
@@ -814,17 +979,41 @@ def table(result: dict) -> str:
                 f"{r['ensemble_s']:.2f} | "
                 f"{r['Mpsps_per_member']:.1f} | {r['Mpsps_single']:.1f} |"
             )
+    lines += _agreement_lines(result)
+    return "\n".join(lines)
+
+
+def _difference(value: float) -> str:
+    return f"{value:.1e}" if math.isfinite(value) else "not a number"
+
+
+def _agreement_lines(result: dict) -> list[str]:
+    """The agreement line of ``table`` and, where float64 codes disagree beyond round-off, a line
+    saying so."""
+    rows = result["rows"]
     agree = result.get("agreement", {})
-    if agree:
+    if not agree:
+        return []
+    notes = result.get("agreement_notes", {})
+    parts = []
+    for dtype, groups in agree.items():
+        said = [f"{g} {_difference(v)}" for g, v in groups.items()]
+        said += [f"{g}: {'; '.join(n)}" for g, n in notes.get(dtype, {}).items()]
+        parts.append(f"{dtype}: " + (", ".join(said) or _nothing_compared(rows, dtype)))
+    lines = ["", "Mean final F, largest relative difference from NumPy's: " + "; ".join(parts)]
+    bad = result.get("disagreement", disagreement(agree))
+    if bad:
         lines += [
             "",
-            "Mean final F, largest relative difference from NumPy's: "
+            "**The codes disagree beyond round-off**: "
             + "; ".join(
-                f"{k}: " + (", ".join(f"{g} {v:.1e}" for g, v in d.items()) or _nothing_compared(rows, k))
-                for k, d in agree.items()
-            ),
+                f"{dtype} {g} by {_difference(v)} (round-off is under {AGREEMENT_BOUND[dtype]:.0e})"
+                for dtype, groups in bad.items()
+                for g, v in groups.items()
+            )
+            + ". Their throughputs do not time one computation.",
         ]
-    return "\n".join(lines)
+    return lines
 
 
 def _nothing_compared(rows: list[dict], dtype: str) -> str:

@@ -11,11 +11,13 @@ import os
 import re
 import subprocess
 
+import numpy as np
 import pytest
 
 import jaxmpm as jm
-from benchmarks import _baselines_2d, bench
+from benchmarks import _baselines, _baselines_2d, bench
 from jaxmpm import cli
+from jaxmpm import status as st_bits
 
 TINY = {
     "--sizes": "100",
@@ -177,7 +179,7 @@ def test_sizes_beyond_the_memory_here_are_refused(capsys, recorded):
 @pytest.mark.parametrize(
     "option, dim, codes, interpolators",
     [
-        ("--sizes", 1, "numpy", "spq"),
+        ("--sizes", 1, "numpy", None),  # --interpolators without jaxmpm would do nothing: refused
         ("--sizes-2d", 2, "numpy,jaxmpm", "spq"),
         ("--sizes-3d", 3, "jaxmpm", "spq,cpdi"),
     ],
@@ -189,7 +191,7 @@ def test_the_largest_size_that_fits_is_the_bound(
     by the estimate the one fits and the other does not."""
     available = 2_000_000_000
     monkeypatch.setattr(bench, "available_memory", lambda: available)
-    options = dict(codes=codes, interpolators=interpolators)
+    options = dict(codes=codes, **({"interpolators": interpolators} if interpolators else {}))
     assert cli.main(argv(**options, **{option[2:].replace("-", "_"): "1" + "0" * 12})) == 2
     err = one_line_error(capsys, f"{option}:", "2 GB", "the largest that fits is ")
     largest = int(re.search(r"the largest that fits is ([\d,]+)", err).group(1).replace(",", ""))
@@ -198,7 +200,7 @@ def test_the_largest_size_that_fits_is_the_bound(
     else:
         side = 2 * _baselines_2d.cells_of(largest, dim)
         following = (side + 2) ** dim
-    per = bench.bytes_per_particle(dim, codes.split(","), interpolators.split(","))
+    per = bench.bytes_per_particle(dim, codes.split(","), (interpolators or "").split(","))
     assert bench.PROCESS_BYTES + largest * per <= available < bench.PROCESS_BYTES + following * per
     size = option[2:].replace("-", "_")
     assert cli.main(argv(**options, **{size: str(largest)})) == 0
@@ -320,3 +322,228 @@ def test_the_results_are_printed_before_the_files_are_written(tmp_path, capsys, 
     assert cli.main(argv(out=str(tmp_path))) == 74
     cap = capsys.readouterr()
     assert "NumPy" in cap.out and "No space left on device" in cap.err
+
+
+# --- Breakdowns, throughput and agreement ------------------------------------------------------------
+
+
+def _row(code, F_mean=1.5, status=0, n=1000, dim=1, run_s=0.01, dtype="f64"):
+    return dict(
+        code=code,
+        dtype=dtype,
+        particles=n,
+        steps=10,
+        compile_s=0.5,
+        run_s=run_s,
+        Mpsps=n * 10 / run_s / 1e6 if status == 0 else None,
+        F_mean=F_mean,
+        status=status,
+        dim=dim,
+    )
+
+
+def _result(rows, numpy_with_fold=()):
+    agree, notes = bench._agreement(rows, numpy_with_fold)
+    return dict(
+        date="now",
+        machine="here",
+        versions={},
+        copy_bandwidth_GBps=10.0,
+        rows=rows,
+        numpy_with_fold=list(numpy_with_fold),
+        agreement=agree,
+        agreement_notes=notes,
+        disagreement=bench.disagreement(agree),
+    )
+
+
+def test_a_reference_code_whose_particles_leave_the_grid_reports_it():
+    """Plain JAX clamps its gathers and drops its scatters: its particles leave the grid with F
+    finite; NumPy's bincount raises on them. Both report LEFT_GRID (jaxmpm's bit), not a healthy run."""
+    L = _baselines.layout(100)
+    _, _, F_mean, status = _baselines.plain_jax_spq(100, 400, "f64")[:4]
+    assert np.isfinite(F_mean) and status & st_bits.LEFT_GRID
+    numpy = _baselines.numpy_spq(100, 400, "f64")
+    assert len(numpy) == 4 and numpy[3] & st_bits.LEFT_GRID
+    assert _baselines.numpy_spq(100, 20, "f64")[3] == 0 and _baselines.plain_jax_spq(100, 20, "f64")[3] == 0
+    assert _baselines.grid_span(L)[1] == pytest.approx(L["x_min"] + (L["nodes"] - 1) * L["h"])
+
+
+def test_health_sets_jaxmpms_bits():
+    ok = dict(x=np.array([[0.1, 0.2]]), v=np.zeros((1, 2)), F=np.eye(2)[None], x_tr=np.zeros((1, 2)))
+    assert _baselines.health(**ok, x_lo=-1.0, x_hi=1.0, J=np.ones(1)) == 0
+    assert (
+        _baselines.health(**dict(ok, x=np.array([[0.1, 1.0]])), x_lo=-1.0, x_hi=1.0, J=np.ones(1))
+        == st_bits.LEFT_GRID
+    )
+    assert (
+        _baselines.health(**dict(ok, x_tr=np.array([[-1.5, 0]])), x_lo=-1.0, x_hi=1.0, J=np.ones(1))
+        == st_bits.LEFT_GRID
+    )
+    assert _baselines.health(**ok, x_lo=-1.0, x_hi=1.0, J=np.zeros(1)) == st_bits.NONPOSITIVE_F
+    nan = dict(ok, v=np.array([[np.nan, 0]]))
+    assert _baselines.health(**nan, x_lo=-1.0, x_hi=1.0, J=np.ones(1)) == st_bits.NONFINITE
+
+
+def test_a_broken_run_has_no_throughput():
+    """Every row of a run that broke down keeps its status and times but no Mpsps (None: null in
+    JSON, empty in CSV), and the table says it broke down instead of a number."""
+    out = bench.worker("f64", [100], 400, ["numpy", "jax"], [], extras=False)
+    assert [r["code"] for r in out["rows"]] == ["NumPy", "plain JAX"]
+    for r in out["rows"]:
+        assert r["status"] & st_bits.LEFT_GRID and r["Mpsps"] is None, r
+    text = bench.table(_result(out["rows"]))
+    assert "| plain JAX | broke down (status 4) |" in text.replace("status 5", "status 4")
+    assert "nan" not in text.split("Mean final F")[0]
+
+
+def test_written_rows_of_a_broken_run_have_no_throughput(tmp_path):
+    rows = [_row("NumPy"), _row("plain JAX", status=st_bits.LEFT_GRID)]
+    bench.write(_result(rows), tmp_path)
+    written = json.loads((tmp_path / "bench.json").read_text())["rows"]
+    assert [r["Mpsps"] for r in written] == [1.0, None]
+    lines = (tmp_path / "bench.csv").read_text().splitlines()
+    col = bench.ROW_FIELDS.index("Mpsps")
+    assert [line.split(",")[col] for line in lines[1:]] == ["1.0", ""]
+    assert "broke down (status 4)" in (tmp_path / "bench.md").read_text()
+
+
+def test_a_ratio_never_uses_a_broken_run():
+    rows = [
+        _row("Taichi", n=1000, run_s=0.01),
+        _row("Warp", n=1000, status=3),
+        _row("jaxmpm spq", n=1000, run_s=0.005),
+        _row("Taichi", n=2000, run_s=0.01),
+        _row("jaxmpm spq", n=2000, run_s=0.01),
+    ]
+    text = bench.table(_result(rows))
+    assert "| jaxmpm spq / faster of Taichi, Warp | - | 1.00 |" in text
+    assert "1,000: Warp broke down (status 3)" in text
+    assert "| Warp | broke down (status 3) |" in text
+
+
+def test_best_of_prefers_a_healthy_round():
+    fast_but_broken = dict(_row("Warp", run_s=0.001), status=3, Mpsps=None)
+    best = bench.best_of([[fast_but_broken], [_row("Warp", run_s=0.01)]])[0]
+    assert best["status"] == 0 and best["run_s"] == 0.01 and best["Mpsps_rounds"] == [None, 1.0]
+    assert bench.best_of([[fast_but_broken]])[0]["status"] == 3  # no healthy round: it broke down
+
+
+def test_agreement_counts_nan_as_a_disagreement():
+    rows = [_row("NumPy", 1.5), _row("plain JAX", float("nan"))]
+    agree = bench.agreement(rows)
+    assert agree["f64"]["reference codes"] == float("inf")
+    assert bench.disagreement(agree) == {"f64": {"reference codes": float("inf")}}
+
+
+def test_agreement_with_numpy_alone_has_nothing_to_compare():
+    rows = [_row("NumPy")]
+    assert bench.agreement(rows) == {"f64": {}}
+    notes = bench.agreement_notes(rows)["f64"]["reference codes"]
+    assert notes == ["nothing to compare: fewer than two healthy codes (only NumPy)"]
+    text = bench.table(_result(rows))
+    assert "reference codes: nothing to compare" in text and "0.0e+00" not in text
+
+
+def test_agreement_names_a_size_left_out():
+    rows = [
+        _row("NumPy", n=200, status=st_bits.LEFT_GRID),
+        _row("plain JAX", n=200),
+        _row("NumPy", n=400),
+        _row("plain JAX", n=400),
+    ]
+    fold = [dict(dtype="f64", particles=400, dim=1, F_mean=1.5, status=st_bits.NONFINITE)]
+    rows.append(_row("jaxmpm spq", n=400))
+    agree, notes = bench._agreement(rows, fold)
+    assert agree["f64"] == {"reference codes": 0.0}
+    assert notes["f64"]["reference codes"] == ["plain JAX at 200 left out: NumPy broke down (status 4)"]
+    fold_notes = notes["f64"]["jaxmpm spq vs NumPy with the fold"]
+    assert (
+        fold_notes[0].startswith("nothing to compare")
+        and "NumPy with the fold broke down (status 1)" in fold_notes[1]
+    )
+    assert "plain JAX at 200 left out" in bench.table(_result(rows, fold))
+
+
+def test_a_disagreement_in_float64_fails_the_command_after_its_outputs(
+    tmp_path, capsys, monkeypatch, measured
+):
+    """A float64 difference beyond round-off: the table and JSON say so, the files are written, and
+    the command exits 1 with one line; the same difference in float32 is only reported."""
+
+    def disagreeing(*a, **k):
+        result = copy.deepcopy(measured)
+        numpy = result["rows"][0]
+        for dtype in ("f64", "f32"):
+            result["rows"].append(
+                dict(numpy, code="plain JAX", dtype=dtype, F_mean=numpy["F_mean"] * (1 + 1e-3))
+            )
+        result["rows"].append(dict(numpy, dtype="f32"))
+        result["agreement"], result["agreement_notes"] = bench._agreement(result["rows"], [])
+        result["disagreement"] = bench.disagreement(result["agreement"])
+        return result
+
+    monkeypatch.setattr(bench, "run", disagreeing)
+    assert cli.main(argv(out=str(tmp_path))) == 1
+    cap = capsys.readouterr()
+    assert "The codes disagree beyond round-off" in cap.out and "f64 reference codes by 1.0e-03" in cap.out
+    assert "f32 reference codes by" not in cap.out
+    lines = cap.err.splitlines()
+    assert lines[-1].startswith("jaxmpm: error: the codes' mean final F disagree"), cap.err
+    assert "f64 reference codes by 1.0e-03" in lines[-1] and "f32" not in lines[-1]
+    assert "Traceback" not in cap.err
+    held = files(tmp_path)
+    assert set(held) == set(bench.FILES)
+    assert json.loads(held["bench.json"])["disagreement"] == {"f64": {"reference codes": pytest.approx(1e-3)}}
+
+
+def test_a_fold_check_that_breaks_down_is_reported_and_the_benchmark_goes_on(monkeypatch):
+    """The NumPy code with the fold, like every reference code, is reported broken with its status;
+    the float type's results stand (it aborted the whole process before)."""
+    out = bench.worker("f64", [100], 400, ["numpy", "jaxmpm"], ["spq"], extras=False)
+    (fold,) = out["numpy_with_fold"]
+    assert fold["status"] & st_bits.LEFT_GRID
+    notes = bench.agreement_notes(out["rows"], out["numpy_with_fold"])["f64"]
+    assert "jaxmpm spq vs NumPy with the fold" in notes
+
+    real = _baselines.BASELINES["NumPy"]
+
+    def fold_raises(n, steps, dtype, fold=False):
+        if fold:
+            raise ValueError("operands could not be broadcast together with shapes (71,) (72,)")
+        return real(n, steps, dtype)
+
+    monkeypatch.setitem(_baselines.BASELINES, "NumPy", fold_raises)
+    out = bench.worker("f64", [100], 5, ["numpy", "jaxmpm"], ["spq"], extras=False)
+    (fold,) = out["numpy_with_fold"]
+    assert fold["status"] == st_bits.NONFINITE and "broadcast" in fold["error"]
+    assert {r["code"] for r in out["rows"]} == {"NumPy", "jaxmpm spq", "jaxmpm spq, one step a call"}
+
+
+@pytest.mark.parametrize(
+    "options, named",
+    [
+        (dict(codes="numpy", interpolators="spq"), "--interpolators goes with jaxmpm in --codes"),
+        (dict(codes="numpy,,jax"), "--codes has an empty item"),
+        (dict(codes="numpy,"), "--codes has an empty item"),
+        (dict(dtypes="f64,"), "--dtypes has an empty item"),
+        (dict(codes="jaxmpm", interpolators="spq,,mpq"), "--interpolators has an empty item"),
+        (dict(sizes="1000,"), "--sizes has an empty item"),
+        (dict(sizes_2d="16,"), "--sizes-2d has an empty item"),
+        (dict(sizes_3d=",64"), "--sizes-3d has an empty item"),
+        (dict(sizes="2", steps="100"), "the smallest size for 100 steps is 32"),
+        (dict(sizes="100,30", steps="100"), "--sizes 30"),
+        (dict(sizes="100", steps="400"), "the smallest size for 400 steps is 288"),
+    ],
+)
+def test_options_that_would_do_nothing_or_cannot_run_are_refused(options, named, capsys, recorded):
+    assert cli.main(argv(**options)) == 2
+    one_line_error(capsys, named)
+    assert recorded == []
+
+
+def test_the_smallest_size_for_the_steps_runs(capsys, recorded):
+    assert cli.main(argv(sizes="32", steps="100")) == 0
+    assert cli.main(argv(sizes="2", steps="2", codes="numpy,jaxmpm", interpolators="spq")) == 0
+    assert len(recorded) == 2
+    capsys.readouterr()

@@ -9,6 +9,7 @@ estimate, ``benchmarks.bench.largest_size``), and ``--out`` for a folder that ca
 """
 
 import importlib
+import math
 import pathlib
 import sys
 
@@ -110,7 +111,7 @@ def _sizes(text: str, option: str, dim: int, cells_of) -> list[int]:
     Raises:
         UsageError: not integers (none in 1D), not of the form asked for, or one given twice.
     """
-    tokens = text.split(",") if dim == 1 else [t for t in text.split(",") if t.strip()]
+    tokens = [] if dim > 1 and not text.strip() else _items(text, option)
     try:
         sizes = [int(t) for t in tokens]
     except ValueError:
@@ -123,6 +124,27 @@ def _sizes(text: str, option: str, dim: int, cells_of) -> list[int]:
             f"{option} must be particle counts {2**dim} k^{dim} ({shape} particles each), got {text!r}"
         )
     return _distinct(sizes, option, text)
+
+
+def _items(text: str, option: str) -> list[str]:
+    """The comma-separated items of ``text``, stripped, refused where one is empty (``numpy,,jax``,
+    ``1000,``): an empty item is a mistyped list, not nothing, in every option alike."""
+    items = [t.strip() for t in text.split(",")]
+    if not all(items):
+        raise UsageError(f"{option} has an empty item (two commas, or one at an end), got {text!r}")
+    return items
+
+
+def _stays_on_grid(bench, sizes: list[int], steps: int) -> None:
+    """Refuse 1D sizes whose body the exact solution carries off its grid within the run's steps
+    (``bench.smallest_size``): every code would break down, so nothing would be measured."""
+    small = [n for n in sizes if not bench.stays_on_grid(n, steps)]
+    if small:
+        raise UsageError(
+            f"--sizes {small[0]}: at --steps {steps} the body of {small[0]} particles leaves its grid "
+            f"(it expands by beta t; the grid reaches cells/8 + 4 cells beyond it); the smallest size "
+            f"for {steps} steps is {bench.smallest_size(steps):,}"
+        )
 
 
 def _distinct(items: list, option: str, text: str) -> list:
@@ -171,7 +193,9 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status: 0, or 1 when a benchmark process failed (one line on stderr).
+        The exit status: 0; 1 when a benchmark process failed (one line on stderr, nothing printed
+        or written), or when the codes' mean final F disagree in float64 beyond round-off
+        (``bench.AGREEMENT_BOUND``; one line on stderr, after the results are printed and written).
 
     Raises:
         UsageError: bad input, or no source checkout to run the benchmark from; all found before the
@@ -193,6 +217,14 @@ def command(args) -> int:
         raise UsageError(f"--rounds must be an integer >= 1, got {args.rounds}")
     sizes_2d = _sizes(args.sizes_2d, "--sizes-2d", 2, bench.cells_of)
     sizes_3d = _sizes(args.sizes_3d, "--sizes-3d", 3, bench.cells_of)
+    _stays_on_grid(bench, sizes, args.steps)
+    for option, text in (
+        ("--dtypes", args.dtypes),
+        ("--codes", args.codes),
+        ("--interpolators", args.interpolators),
+    ):
+        if text is not None and text.strip():
+            _items(text, option)  # an empty item refused, as in --sizes
     dtypes = _distinct(_assign.choices(args.dtypes, "--dtypes", ("f32", "f64")), "--dtypes", args.dtypes)
     if args.codes is None:
         codes = list(bench.CODES)
@@ -204,6 +236,11 @@ def command(args) -> int:
         allowed = tuple(jm.INTERPOLATORS)
         interps = _assign.choices(args.interpolators, "--interpolators", allowed)
         interps = _distinct(interps, "--interpolators", args.interpolators)
+        if "jaxmpm" not in codes:  # an option that would do nothing
+            raise UsageError(
+                f"--interpolators goes with jaxmpm in --codes (only jaxmpm has interpolators), "
+                f"got --codes {args.codes}"
+            )
     missing = [c for c in codes if not bench.available(c)]
     running = [c for c in codes if c not in missing]
     if not running:
@@ -263,4 +300,17 @@ def command(args) -> int:
             raise CannotWrite(f"--out {args.out}", e) from None
         if not args.json:
             print("wrote " + ", ".join(str(p) for p in paths))
+    bad = result.get("disagreement")
+    if bad:  # after the results are out: they are kept, but their throughputs compare different work
+        said = "; ".join(
+            f"{dtype} {group} by " + (f"{value:.1e}" if math.isfinite(value) else "not a number")
+            for dtype, groups in bad.items()
+            for group, value in groups.items()
+        )
+        bound = ", ".join(f"{dtype} {b:.0e}" for dtype, b in bench.AGREEMENT_BOUND.items())
+        print(
+            f"jaxmpm: error: the codes' mean final F disagree beyond round-off ({bound}): {said}",
+            file=sys.stderr,
+        )
+        return 1
     return 0
