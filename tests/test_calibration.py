@@ -46,7 +46,9 @@ def test_gas_slab_reference_compiles_once_for_new_parameter_values():
         other = reference.gas_slab(jm.GasSlab(P0=4e5, gamma=1.3, p_atm=0.9e5, rho0=1.2, h=0.05), ts, cells=23)
     assert events == []
     assert np.all(np.asarray(other.x_free)[1:] != np.asarray(first.x_free)[1:])
-    assert float(other.X[-1]) == pytest.approx(0.5 * (2 * 23 - 1) / 23 * float(jm.GasSlab(h=0.05).length))
+    assert float(other.X[-1]) == pytest.approx(
+        0.5 * (2 * 23 - 1) / 23 * float(jm.GasSlab(h=0.05).length), rel=1e-14
+    )
 
 
 def test_gas_slab_scene_and_its_reference_agree():
@@ -82,7 +84,7 @@ def test_calibration_recovers_gamma_and_P0_without_noise(synthetic):
         jm.GasSlab(**SLAB), jm.CPDI(), TS, x, fit=("gamma", "P0"), starts=start, dt=dt, progress=False
     )
     for k, v in TRUTH.items():
-        assert fit.fitted[k] == pytest.approx(v, rel=1e-4), fit
+        assert fit.fitted[k] == pytest.approx(v, rel=1e-8), fit  # measured 8.7e-10 and 8.3e-10
     assert fit.loss < 1e-12 and fit.history.shape[0] == fit.iterations + 1
     assert fit.history[-1, 0] < 1e-6 * fit.history[0, 0]
 
@@ -97,7 +99,8 @@ def test_calibration_with_one_percent_noise_and_several_starts(synthetic):
         jm.GasSlab(**SLAB), jm.CPDI(), TS, noisy, fit=("gamma", "P0"), starts=starts, dt=dt, progress=False
     )
     for k, v in TRUTH.items():
-        assert fit.fitted[k] == pytest.approx(v, rel=0.02), fit
+        # measured -2.3e-3 and -5.7e-4, against the fit's own standard errors of 4.9e-3 and 4.7e-3
+        assert fit.fitted[k] == pytest.approx(v, rel=6e-3), fit
         assert fit.starts_fitted[k].shape == (3,)
     assert fit.history.shape[1] == 3
     assert list(fit.failed_starts) == [2] and "broke down at step" in fit.failed_starts[2]
@@ -227,8 +230,8 @@ def test_calibrate_and_ensemble_cli(tmp_path, capsys, synthetic):
     assert main(argv + ["--dt", repr(dt), "--json", "--no-progress"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out) >= {"fitted", "loss", "iterations", "wall_s"}
-    assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=1e-4)
-    assert out["fitted"]["P0"] == pytest.approx(3e5, rel=1e-4)
+    assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=1e-8)  # measured 8.7e-10
+    assert out["fitted"]["P0"] == pytest.approx(3e5, rel=1e-8)  # measured 8.3e-10
     bad = tmp_path / "bad.csv"
     bad.write_text("time,x\n0,1\n")
     assert main(["calibrate", "gas-slab", "--data", str(bad)]) == 2

@@ -64,9 +64,9 @@ def test_the_long_window_recovers_the_constants_with_no_warning(reference):
     scene = jm.GasSlab(**MODEL, pad=pad_for(scene, 1.25 * x.max()))
     fit = cal.calibrate(scene, jm.CPDI(), ts, x, starts=START, dt=_dt(jm.GasSlab(**START, **MODEL)))
     assert fit.warning is None and fit.converged and fit.method == "lm"
-    for k, v in TRUTH.items():
-        assert fit.fitted[k] == pytest.approx(v, rel=0.02), fit.fitted
-        assert 0 < fit.std[k] < 0.02 * v
+    for k, v in TRUTH.items():  # measured -3.1e-3 and 3.2e-3, standard errors 1.7e-3 and 1.9e-3 relative
+        assert fit.fitted[k] == pytest.approx(v, rel=6e-3), fit.fitted
+        assert 0 < fit.std[k] < 4e-3 * v
     corr = fit.correlation
     assert corr.shape == (2, 2) and np.allclose(np.diag(corr), 1) and abs(corr[0, 1]) < 0.99
     assert np.allclose(corr, corr.T) and np.isfinite(fit.condition) and fit.condition > 1
@@ -256,9 +256,9 @@ def test_cli_sizes_the_grid_for_the_data_and_recovers_the_constants(reference, t
     assert cap.err == ""
     assert out["pad"] == pad_for(jm.GasSlab(cells=32, h=1 / 32), 1.25 * x.max()) > 192
     assert out["warning"] is None and out["converged"] and out["method"] == "lm"
-    for k, v in TRUTH.items():
-        assert out["fitted"][k] == pytest.approx(v, rel=0.02)
-        assert 0 < out["std"][k] < 0.02 * v
+    for k, v in TRUTH.items():  # measured -1.5e-3 and 1.7e-3, standard errors 8.0e-4 and 8.8e-4 relative
+        assert out["fitted"][k] == pytest.approx(v, rel=4e-3)
+        assert 0 < out["std"][k] < 2e-3 * v
     assert abs(out["correlation"]["gamma"]["P0"]) < 0.99
     assert out["correlation"]["P0"]["P0"] == pytest.approx(1.0, rel=1e-14)
     assert out["condition"] > 1 and out["sigma"] > 0 and out["noise"] is None
@@ -356,8 +356,8 @@ def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path
     assert out["starts_fitted"][3] is None and out["best_start"] != 3
     assert out["start"] == starts[out["best_start"]]
     assert out["fitted"] == out["starts_fitted"][out["best_start"]]
-    assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=0.02)
-    assert out["fitted"]["P0"] == pytest.approx(3e5, rel=0.02)
+    assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=6e-3)  # measured -2.3e-3
+    assert out["fitted"]["P0"] == pytest.approx(3e5, rel=6e-3)  # measured -5.7e-4
     usage(
         capsys, argv + ["--method", "adam", "--devices", "1"], "--devices spreads the starts of --method lm"
     )

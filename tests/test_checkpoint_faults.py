@@ -420,15 +420,26 @@ def test_out_in_a_missing_folder(tmp_path, nothing_compiles):
     assert not out.parent.exists()
 
 
-def test_out_in_a_folder_that_cannot_be_written(tmp_path, nothing_compiles):
+def test_out_in_a_folder_that_cannot_be_written(tmp_path, monkeypatch, nothing_compiles):
     folder = tmp_path / "locked"
     folder.mkdir()
     folder.chmod(0o500)
     try:
-        if os.access(folder, os.W_OK):
-            pytest.skip("this user may write in any folder (root)")
-        with pytest.raises(ValueError, match="cannot write in the folder"):
+        if os.access(folder, os.W_OK):  # root writes in any folder: the probe file is refused as the
+            real = long_run.tempfile.mkstemp  # kernel refuses it to anyone else
+
+            def refused(*args, dir=None, **kwargs):
+                if pathlib.Path(dir) == folder:
+                    raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(folder))
+                return real(*args, dir=dir, **kwargs)
+
+            monkeypatch.setattr(long_run.tempfile, "mkstemp", refused)
+        with pytest.raises(ValueError) as refusal:
             long_run.run(SCENE, jm.SPQ(), out=folder / "run.npz", **KW)
+        assert str(refusal.value) == (
+            f"out={folder / 'run.npz'}: cannot write in the folder {folder} ({os.strerror(errno.EACCES)})"
+        )
+        assert list(folder.iterdir()) == []
     finally:
         folder.chmod(0o700)
 

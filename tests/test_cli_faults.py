@@ -65,7 +65,7 @@ def test_a_broken_run_to_an_end_time_stops_computing(capsys, monkeypatch):
 
 
 @pytest.mark.slow
-def test_a_chunked_run_equals_one_scan(capsys):
+def test_a_chunked_run_equals_one_scan(capsys, monkeypatch):
     """A run too long for one chunk (a wide grid makes each step slow) equals ``simulate`` bit for bit."""
     import numpy as np
 
@@ -81,12 +81,15 @@ def test_a_chunked_run_equals_one_scan(capsys):
         "--artificial-cells",
         "1",
     ]
+    chunks = count_chunks(monkeypatch, cli_run)  # the chunks of the run to --t-end
     assert main(argv + ["--t-end", "0.02", "--cfl", "0.5", "--max-steps", "100000", "--json"]) == 0
     to_end = json.loads(capsys.readouterr().out)
+    assert len(chunks) >= 2  # the chunk is ~90 steps here: both runs take more than one (2 measured)
+    chunks = count_chunks(monkeypatch, long_run)  # the chunks of the run to --steps (run_timed's)
     assert main(argv + ["--dt", "1e-4", "--steps", "200", "--json"]) == 0
     fixed = json.loads(capsys.readouterr().out)
+    assert len(chunks) >= 2  # 3 measured (200 steps)
     scene = jm.GasExpansion(pad=20000, beta=20.0)
-    assert cli_run._plain.__doc__  # the chunk is ~90 steps here: both runs take more than one
     a = jm.simulate(scene, jm.MPQ(), t_end=0.02, cfl=0.5, max_steps=100000, artificial_cells=1)
     b = jm.simulate(scene, jm.MPQ(), dt=1e-4, steps=200, artificial_cells=1)
     assert to_end["steps_taken"] == int(a.state.step) > 100

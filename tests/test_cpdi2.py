@@ -282,7 +282,7 @@ def test_gradient_of_a_2d_blast_matches_finite_differences():
         ev = lambda k: float(f({**values, n: values[n] + k * d}))  # noqa: E731
         fd = (8 * (ev(1) - ev(-1)) - (ev(2) - ev(-2))) / (12 * d)
         assert np.isfinite(float(g[n])) and float(g[n]) != 0
-        np.testing.assert_allclose(float(g[n]), fd, rtol=1e-9)
+        np.testing.assert_allclose(float(g[n]), fd, rtol=5e-11)  # measured 1.8e-12 to 4.9e-12
 
 
 def test_disk_blast_runs():

@@ -174,7 +174,7 @@ def test_one_sided_derivative_on_a_node():
 def test_zero_error_has_zero_gradient_not_nan():
     """APIC's first step is exact, so F_rms_rel = 0 there; its derivative must be 0, not NaN."""
     g = jm.gradient(jm.GasExpansion(cells=3), jm.SPQ(), ["beta", "h"], dt=1e-5, steps=1, transfer=jm.APIC())
-    assert all(bool(jnp.isfinite(v)) for v in g.values())
+    assert all(float(v) == 0.0 for v in g.values()), g
 
 
 def test_bad_gradient_names():

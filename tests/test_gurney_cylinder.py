@@ -76,7 +76,7 @@ def test_run_is_symmetric_about_the_diagonal_and_drives_the_ring_out(short_run):
     assert abs(v[0]) < 1e-9  # at rest until the front reaches the ring at 5 us, then driven out
     moving = v > 10.0
     assert moving[-3:].all() and np.all(np.diff(v[moving]) > 0.0)
-    assert 400.0 < v[-1] < float(scene.gurney_velocity())
+    assert 520.0 < v[-1] < 630.0 < float(scene.gurney_velocity())  # measured 575.3 m/s
     assert float(scene.ring_radius(st, body)) > float(scene.ring_radius(_moved(st, body.X, st.v), body))
 
 
@@ -87,7 +87,7 @@ def test_energy_is_kept_to_two_percent(short_run):
     start = jm.simulate(scene, jm.CPDI(), dt=1e-15, steps=1)
     e0 = float(jm.diagnostics(scene, start.state, start.body)["energy"])
     e1 = float(jm.diagnostics(scene, sol.state, sol.body)["energy"])
-    assert 0.97 * e0 < e1 < e0
+    assert 0.98 * e0 < e1 < e0  # measured 0.982
 
 
 def test_bad_split_is_one_clear_error():

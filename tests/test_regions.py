@@ -171,7 +171,8 @@ def test_two_blocks_collide_with_exact_momentum_and_the_impedance_weighted_inter
         ts = np.asarray(sol.ts)
         k = len(ts) // 4
         slope = np.polyfit(ts[k:], x_i[k:], 1)[0]
-        assert abs(slope / v_star - 1) < 2e-3, (type(interp).__name__, slope, v_star)
+        # measured 3.8e-4 (CPDI), 6.4e-4 (MPQ), 4.5e-4 (GIMP)
+        assert abs(slope / v_star - 1) < 1e-3, (type(interp).__name__, slope, v_star)
         assert np.all(np.diff(np.asarray(sol.state.x[:, 0])) > 0)  # the blocks stick; nothing crosses
 
 
@@ -197,7 +198,7 @@ def test_history_variables_live_in_the_state_history_and_gradient():
     g = jax.grad(loss)(jnp.asarray(-0.5))
     eps = 1e-5
     fd = (loss(jnp.asarray(-0.5 + eps)) - loss(jnp.asarray(-0.5 - eps))) / (2 * eps)
-    assert np.isfinite(float(g)) and abs(float(g) - float(fd)) < 1e-6 * abs(float(fd))
+    assert np.isfinite(float(g)) and abs(float(g) - float(fd)) < 3e-9 * abs(float(fd))  # measured 3.0e-10
 
 
 def test_negative_energy_is_a_named_breakdown():

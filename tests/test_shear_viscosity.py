@@ -47,14 +47,16 @@ def test_it_acts_where_the_flow_shears():
     kw = dict(dt=1e-5, steps=20, artificial_cells=1)
     a = jm.simulate(sc, jm.MPQ(), viscosity=bulk0, **kw)
     b = jm.simulate(sc, jm.MPQ(), viscosity=jm.ArtificialViscosity(c_quad=0.0, c_lin=0.0, c_shear=0.5), **kw)
-    assert float(jnp.max(jnp.abs(a.state.x - b.state.x))) < 1e-3 * float(sc.h)
+    gap = float(jnp.max(jnp.abs(a.state.x - b.state.x))) / float(sc.h)
+    assert 1e-4 < gap < 4e-4, gap  # measured 2.06e-4 (h)
     disk = jm.BlastDisk(cells=8, pad=20)
     kw = dict(t_end=0.5 * float(disk.transit_time), cfl=0.3, max_steps=2000)
     a = jm.simulate(disk, jm.CPDI(), viscosity=bulk0, **kw)
     b = jm.simulate(
         disk, jm.CPDI(), viscosity=jm.ArtificialViscosity(c_quad=0.0, c_lin=0.0, c_shear=0.3), **kw
     )
-    assert float(jnp.max(jnp.abs(a.state.x - b.state.x))) > 0.1 * float(disk.h)
+    gap = float(jnp.max(jnp.abs(a.state.x - b.state.x))) / float(disk.h)
+    assert 0.2 < gap < 0.5, gap  # measured 0.261 (h)
 
 
 @pytest.mark.slow

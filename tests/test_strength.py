@@ -333,7 +333,7 @@ def test_gradients_of_a_1d_impact_match_central_differences():
     h = 1e-3 * Y
     fd = float((loss(Y0 + h) - loss(Y0 - h)) / (2 * h))
     assert np.isfinite(g) and g != 0.0
-    assert g == pytest.approx(fd, rel=1e-6)
+    assert g == pytest.approx(fd, rel=2e-9)  # measured 2.2e-10
 
 
 @pytest.mark.parametrize(

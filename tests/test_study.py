@@ -69,12 +69,22 @@ def test_profile_grid_writes_a_note_under_the_grid(tmp_path):
     assert ink(b[-rows:]) > ink(a[-rows:]) + 100
 
 
-def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
+def test_sensitivity_figure_draws_a_curve_for_every_interpolator(monkeypatch, tmp_path):
     """The sensitivity study's figure takes one colour per interpolator of the registry (every one of
     ``METHODS``, with and without artificial cells), so a new interpolator cannot break the study."""
+    import matplotlib.colors as mcolors
     import numpy as np
 
     from jaxmpm.studies import sensitivity
+
+    figures = []
+    real = sensitivity.save_figure
+
+    def save(fig, path, dpi):
+        figures.append(fig)
+        return real(fig, path, dpi)
+
+    monkeypatch.setattr(sensitivity, "save_figure", save)
 
     values = np.array([50.0, 100.0, 200.0])
     results = [
@@ -90,9 +100,20 @@ def test_sensitivity_figure_draws_a_curve_for_every_interpolator(tmp_path):
         for name in METHODS
         for ac in (0, 1)
     ]
+    labels = [name + suffix for name in METHODS for suffix in ("", " + AC")]  # 2 * len(METHODS)
     path = tmp_path / "sensitivity_beta.png"
     sensitivity.figure(results, "beta", path, "s")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(figures) == 1
+    for ax in figures[0].axes:  # the error and its derivative: a curve per method and setting each
+        curves = [line for line in ax.get_lines() if line.get_label() in labels]
+        assert sorted(line.get_label() for line in curves) == sorted(labels)
+        colour = {line.get_label(): mcolors.to_hex(line.get_color()) for line in curves}
+        dashed = {line.get_label(): line.get_linestyle() == "--" for line in curves}
+        for name in METHODS:  # one colour per interpolator, the same with and without AC
+            assert colour[name] == colour[name + " + AC"]
+            assert not dashed[name] and dashed[name + " + AC"]
+        assert len({colour[name] for name in METHODS}) == len(METHODS)
 
 
 def test_convergence_orders_fit_what_finished_and_give_no_finest_pair_past_a_breakdown():

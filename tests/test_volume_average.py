@@ -71,11 +71,12 @@ def test_volume_average_is_refused_by_name_and_changes_a_blast():
     scene = jm.Blast(cells=4, ppc=2)
     dt = 0.25 * float(scene.h) / 374.0
     plain = jm.simulate(scene, jm.CPDI(), dt=dt, steps=5)
+    measured = {"cell": 1.31e-4, "node": 7.20e-3}  # the largest move of a particle, in h
     for kind in ("cell", "node"):
         avg = jm.simulate(scene, jm.CPDI(), dt=dt, steps=5, volume_average=kind)
         assert int(avg.state.status) == 0
-        gap = float(jnp.max(jnp.abs(avg.state.x - plain.state.x)))
-        assert 0.0 < gap < 0.02 * float(scene.h)  # measured 1.3e-4 h (cell), 7.2e-3 h (node)
+        gap = float(jnp.max(jnp.abs(avg.state.x - plain.state.x))) / float(scene.h)
+        assert 0.5 * measured[kind] < gap < 2.0 * measured[kind], (kind, gap)
     g = jax.grad(
         lambda P0: jm.simulate(
             jm.Blast(cells=4, ppc=2, P0=P0), jm.CPDI(), dt=dt, steps=5, volume_average="node"
