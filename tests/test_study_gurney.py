@@ -13,8 +13,8 @@ pytestmark = pytest.mark.slow
 
 
 def test_study_gurney_small(tmp_path, capsys):
-    """Measured at 6 cells, 7 us (the front reaches the ring at 5 us): CPDI with APIC and the shear
-    viscosity drives the ring to 480 m/s; the strong ring is slower."""
+    """Measured at 6 cells, at the last time: CPDI with APIC and the shear viscosity drives the ring to
+    385 m/s (MPQ 380, CPDI without those remedies 339); the strong ring is slower (384)."""
     assert main(["study", "gurney", "--out", str(tmp_path), "--small"]) == 0
     capsys.readouterr()
     for name in ("gurney.md", "gurney.json"):
@@ -34,7 +34,7 @@ def test_study_gurney_small(tmp_path, capsys):
         assert r["failure"] is None and r["status"] == "ok"
         assert r["gurney"] == pytest.approx(v_gurney, rel=1e-12)
         # the ring is driven out, below Gurney's terminal velocity, and has begun to expand
-        assert 300.0 < r[last] < r["gurney"]
+        assert 330.0 < r[last] < 420.0 < r["gurney"], (r["interpolator"], r[last])
         assert r[f"r_{cfg['times'][-1]:g}"] > r["r0"]
         assert r["t"][0] == 0.0 and r["t"][-1] == pytest.approx(cfg["t_end"])
         assert r["v_ring"][-1] == pytest.approx(r[last], rel=1e-12)
