@@ -12,20 +12,24 @@ tests, and the suite's settings in ``pyproject.toml`` are not read: no workers, 
 jaxtyping checks. The plugin refuses to log such a run (``check_settings_read``).
 
 Each process that runs tests (each pytest-xdist worker, or pytest itself without workers) writes
-``<log>/<worker>.jsonl``: one line per test with its wall time, and one per compilation event JAX
-reports to its monitoring listeners (``jaxpr_trace_duration``, ``jaxpr_to_mlir_module_duration``,
-``backend_compile_duration``, the last including a read from the on-disk compilation cache), with
-the name of the function compiled and the test it happened in, and one per whole run that
-``jm.simulate`` compiles or reuses (the program's structure: its model's static fields and array
-shapes, what it saves, its checkpoint block and its step count). The report sums them per file, per
-test function (its parametrisations together), per compiled function and per worker, and counts the
-distinct whole-run programs with and without their step count (what a step count that is not static
-would share).
+``<log>/<worker>.jsonl``: one line per test with its wall time (and two with its CPU times, below),
+and one per compilation event JAX reports to its monitoring listeners (``jaxpr_trace_duration``,
+``jaxpr_to_mlir_module_duration``, ``backend_compile_duration``, the last including a read from the
+on-disk compilation cache), with the name of the function compiled and the test it happened in, and
+one per whole run that ``jm.simulate`` compiles or reuses (the program's structure: its model's
+static fields and array shapes, what it saves, its checkpoint block and its step count). The report
+sums them per file, per test function (its parametrisations together), per compiled function and per
+worker, and counts the distinct whole-run programs with and without their step count (what a step
+count that is not static would share).
 
-Processes that a test starts (command lines, notebooks, docs examples) are not seen: their time
-counts as the test's wall time only. A jitted function traced inside another's trace reports its own
-tracing too, so tracing can be counted twice where jitted functions nest. Give an empty folder: a
-worker's file replaces the one of the same name.
+Each test's CPU time is logged too: its own process's (user and system, ``getrusage``) and that of
+the processes it started and waited for (command lines, notebooks, docs examples, multi-process
+runs), whose compilations the events above do not see. The report sums it per file and per test
+function: on 2 cores the suite's wall time is at least its CPU time over 2.
+
+A jitted function traced inside another's trace reports its own tracing too, so tracing can be
+counted twice where jitted functions nest. Give an empty folder: a worker's file replaces the one of
+the same name.
 """
 
 from __future__ import annotations
@@ -41,6 +45,11 @@ import time
 from pathlib import Path
 
 import pytest
+
+try:
+    import resource
+except ImportError:  # not Unix: no CPU times
+    resource = None
 
 EVENTS = {
     "jaxpr_trace_duration": "trace",
@@ -147,6 +156,15 @@ def pytest_configure(config):
     _LOG.append(log)
 
 
+def cpu_times() -> tuple[float, float] | None:
+    """CPU seconds (user and system) so far of this process and of the processes it started and
+    waited for, or ``None`` where ``getrusage`` is missing."""
+    if resource is None:
+        return None
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime, children.ru_utime + children.ru_stime
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     if not _LOG:
@@ -154,9 +172,13 @@ def pytest_runtest_protocol(item, nextitem):
         return
     log = _LOG[0]
     log.test = item.nodeid
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), cpu_times()
     yield
     log.rows.append((item.nodeid, "wall", "", time.perf_counter() - start))
+    if cpu is not None:
+        (own, children), (own0, children0) = cpu_times(), cpu
+        log.rows.append((item.nodeid, "cpu", "", own - own0))
+        log.rows.append((item.nodeid, "children", "", children - children0))
     log.test = "<between tests>"
 
 
@@ -250,7 +272,41 @@ def report(logs: dict[str, list[tuple[str, str, str, float]]], top: int = 25) ->
         "Per compiled function (its tracing, lowering and compilations; no wall time of its own)",
         top,
     )
+    lines += cpu_tables(rows, top)
     return "\n".join(lines)
+
+
+def cpu_tables(rows: list[tuple[str, str, str, float]], top: int = 25) -> list[str]:
+    """The tests' CPU time: in all, then per file and per test function, the test's own process and
+    the processes it started apart; nothing for a log without CPU times."""
+    own = [(t, d) for t, kind, _, d in rows if kind == "cpu"]
+    started = [(t, d) for t, kind, _, d in rows if kind == "children"]
+    if not own:
+        return []
+    total_own, total_started = sum(d for _, d in own), sum(d for _, d in started)
+    lines = [
+        "",
+        f"CPU time of the tests: {total_own + total_started:.0f} s, {total_own:.0f} s in the tests' own "
+        f"processes and {total_started:.0f} s in the processes they started",
+    ]
+    for title, key in (
+        ("Per file, by CPU time", lambda t: t.split("::")[0]),
+        ("Per test function, by CPU time (parametrisations together)", lambda t: re.sub(r"\[.*\]$", "", t)),
+    ):
+        sums = collections.defaultdict(collections.Counter)
+        for t, d in own:
+            sums[key(t)]["own"] += d
+            sums[key(t)]["tests"] += 1
+        for t, d in started:
+            sums[key(t)]["started"] += d
+        order = sorted(sums.items(), key=lambda kv: -(kv[1]["own"] + kv[1]["started"]))[:top]
+        header = "| CPU s | own process s | started processes s | tests | |"
+        lines += [f"\n{title}\n", header, "|---" * 5 + "|"]
+        lines += [
+            f"| {c['own'] + c['started']:.1f} | {c['own']:.1f} | {c['started']:.1f} | {c['tests']} | {k} |"
+            for k, c in order
+        ]
+    return lines
 
 
 def main(argv=None) -> int:

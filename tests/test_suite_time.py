@@ -91,3 +91,48 @@ def test_the_plugin_refuses_a_run_without_the_suites_settings(tmp_path):
     with pytest.raises(pytest.UsageError, match=re.escape(f"write --suite-time-log={tmp_path}")):
         check_settings_read(str(tmp_path), None, tmp_path)
     check_settings_read(str(tmp_path), tmp_path / "pyproject.toml", tmp_path)  # settings read: logged
+
+
+def test_report_sums_cpu_time_of_the_tests_and_of_the_processes_they_started(tmp_path):
+    a, b, c = "tests/test_a.py::test_x[spq]", "tests/test_a.py::test_x[mpq]", "tests/test_b.py::test_y"
+    rows = {
+        "gw0": [(a, "wall", "", 2.0), (a, "cpu", "", 1.5), (a, "children", "", 0.0)],
+        "gw1": [
+            (b, "wall", "", 3.0),
+            (b, "cpu", "", 2.5),
+            (b, "children", "", 0.25),
+            (c, "wall", "", 9.0),  # waits on a command line it started
+            (c, "cpu", "", 0.5),
+            (c, "children", "", 6.0),
+        ],
+    }
+    for worker, r in rows.items():
+        (tmp_path / f"{worker}.jsonl").write_text("".join(json.dumps(x) + "\n" for x in r))
+    text = report(load(tmp_path))
+    assert (
+        "CPU time of the tests: 11 s, 4 s in the tests' own processes and 6 s in the processes they started"
+    ) in text
+    by_file = text.split("Per file, by CPU time")[1].split("Per test function, by CPU time")[0]
+    assert by_file.index("| 6.5 | 0.5 | 6.0 | 1 | tests/test_b.py |") < by_file.index(
+        "| 4.2 | 4.0 | 0.2 | 2 | tests/test_a.py |"
+    )
+    assert "| 4.2 | 4.0 | 0.2 | 2 | tests/test_a.py::test_x |" in text
+    assert "| 5.0 | 0.0 | 0.0 | 0.0 | 0 | 2 | tests/test_a.py |" in text  # the wall-time table as before
+
+
+def test_a_log_without_cpu_times_has_no_cpu_tables(tmp_path):
+    (tmp_path / "gw0.jsonl").write_text(json.dumps(["tests/test_a.py::test_x", "wall", "", 1.0]) + "\n")
+    assert "CPU" not in report(load(tmp_path))
+
+
+def test_cpu_times_count_this_process_and_the_processes_it_waited_for():
+    import subprocess
+    import sys
+
+    from experiments.suite_time import cpu_times
+
+    own0, children0 = cpu_times()
+    sum(i * i for i in range(2_000_000))  # about 0.1 s of this process's CPU
+    subprocess.run([sys.executable, "-c", "sum(i * i for i in range(2_000_000))"], check=True)
+    own1, children1 = cpu_times()
+    assert own1 - own0 > 0.02 and children1 - children0 > 0.02
