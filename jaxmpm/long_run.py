@@ -336,12 +336,33 @@ class InterruptLatch:
     def install(cls) -> InterruptLatch:
         """Make a new latch the process's SIGINT handler (an entry point's choice: global state).
 
+        Python reports an exception it ignores through ``sys.unraisablehook``, whose default prints
+        ``Exception ignored in ...`` and a traceback. The interrupts a latch sees are raised again at
+        the next poll, so they are not reported: the hook is wrapped once (``_QuietLostInterrupt``),
+        and every other ignored exception still goes to the hook there was.
+
         Returns:
             The latch.
         """
         latch = cls()
         signal.signal(signal.SIGINT, latch)
+        if not isinstance(sys.unraisablehook, _QuietLostInterrupt):
+            sys.unraisablehook = _QuietLostInterrupt(sys.unraisablehook)
         return latch
+
+
+class _QuietLostInterrupt:
+    """``sys.unraisablehook`` under an ``InterruptLatch``: a ``KeyboardInterrupt`` that Python ignored
+    while a latch that saw it is the SIGINT handler is dropped (the latch raises it again); anything
+    else goes to ``previous``."""
+
+    def __init__(self, previous):
+        self.previous = previous
+
+    def __call__(self, unraisable):
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _lost_interrupt():
+            return
+        self.previous(unraisable)
 
 
 def _lost_interrupt() -> bool:

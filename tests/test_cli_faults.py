@@ -171,6 +171,48 @@ def test_a_ctrl_c_that_python_ignored_is_raised_at_the_next_poll():
         signal.signal(signal.SIGINT, previous)
 
 
+def test_a_ctrl_c_that_python_ignored_prints_nothing():
+    """A Ctrl-C that lands in a callback Python cannot raise from (here a weakref's) would print
+    ``Exception ignored in ...`` and a traceback through ``sys.unraisablehook``. Once the latch saw
+    it, it is not printed (the next poll raises it); any other ignored exception, and an interrupt no
+    latch saw, still reach the hook there was."""
+    import weakref
+
+    from jaxmpm.long_run import InterruptLatch
+
+    class Target:
+        pass
+
+    def lose(exc):
+        """Raise ``exc`` where Python ignores it: in the callback of a weakref whose target dies."""
+
+        def callback(_):
+            raise exc
+
+        target = Target()
+        ref = weakref.ref(target, callback)
+        del target
+        return ref
+
+    reported = []
+    previous, previous_hook = signal.getsignal(signal.SIGINT), sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: reported.append(type(unraisable.exc_value))
+    try:
+        latch = InterruptLatch.install()
+        lose(KeyboardInterrupt())  # no Ctrl-C seen yet: not the latch's, reported
+        try:
+            latch(signal.SIGINT, None)  # the Ctrl-C arrives ...
+        except KeyboardInterrupt:
+            lose(KeyboardInterrupt())  # ... and is raised in a callback: lost, not reported
+        lose(RuntimeError("another fault"))
+        InterruptLatch.install()  # installed again: the hook is wrapped once
+        lose(RuntimeError("another fault"))
+        assert reported == [KeyboardInterrupt, RuntimeError, RuntimeError]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
+
+
 @pytest.mark.slow
 def test_output_into_a_closed_pipe_is_quiet():
     reader = subprocess.Popen(["head", "-1"], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL)
