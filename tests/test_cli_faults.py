@@ -195,8 +195,9 @@ def test_a_ctrl_c_that_python_ignored_prints_nothing():
         return ref
 
     reported = []
+    record = lambda unraisable: reported.append(type(unraisable.exc_value))
     previous, previous_hook = signal.getsignal(signal.SIGINT), sys.unraisablehook
-    sys.unraisablehook = lambda unraisable: reported.append(type(unraisable.exc_value))
+    sys.unraisablehook = record
     try:
         latch = InterruptLatch.install()
         lose(KeyboardInterrupt())  # no Ctrl-C seen yet: not the latch's, reported
@@ -206,6 +207,7 @@ def test_a_ctrl_c_that_python_ignored_prints_nothing():
             lose(KeyboardInterrupt())  # ... and is raised in a callback: lost, not reported
         lose(RuntimeError("another fault"))
         InterruptLatch.install()  # installed again: the hook is wrapped once
+        assert sys.unraisablehook.previous is record
         lose(RuntimeError("another fault"))
         assert reported == [KeyboardInterrupt, RuntimeError, RuntimeError]
     finally:
