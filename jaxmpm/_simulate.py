@@ -1,6 +1,7 @@
 """The one time-loop driver: ``lax.scan`` over pure steps, saving only what was asked."""
 
 import dataclasses
+import functools
 import math
 import time
 import typing
@@ -440,12 +441,13 @@ def _energy(sol: Solution, p: int) -> str:
     return out + ("" if sol.state.e is None else f", e = {float(host(sol.state.e)[p]):.6g}")
 
 
-def failure_message(sol: Solution, dt: float | None) -> str:
+def failure_message(sol: Solution, dt: float | Float[Array, ""] | None) -> str:
     """The message of a breakdown: the step, the time, the first failing particle and the quantities.
 
     Args:
         sol: a solution whose status is not 0.
-        dt: the fixed time step, or ``None`` for a run to an end time (variable steps).
+        dt: the fixed time step (a number, or a tracer under ``jax.grad`` in ``dt``: the time is then
+            given in steps of it), or ``None`` for a run to an end time (variable steps).
 
     Returns:
         The message of ``SimulationError``.
@@ -459,8 +461,10 @@ def failure_message(sol: Solution, dt: float | None) -> str:
     # Under a transformation that traces the state but not the status (jax.grad, jax.jvp outside
     # jit), the step, the particle and the quantities are known, the state's values are not.
     traced = not all(is_concrete(a) for a in jax.tree.leaves((st, sol.body)))
-    if dt is not None:
-        when = f"t = {f['step'] * dt:.6g}"
+    if dt is not None and is_concrete(dt):
+        when = f"t = {f['step'] * float(dt):.6g}"
+    elif dt is not None:
+        when = f"t = {f['step']} dt"
     else:
         when = "a variable step" if traced else f"after t = {float(st.t):.6g}"
     if traced:
@@ -506,9 +510,11 @@ def failure_message(sol: Solution, dt: float | None) -> str:
 def _finish(sol: Solution, dt, throw: bool, model: Model) -> Solution:
     if not throw:  # (simulate checks that throw is a bool before the run)
         return sol
-    if is_concrete(sol.state.status) and (dt is None or is_concrete(dt)):
+    if is_concrete(sol.state.status):  # also under jax.grad or jax.jvp outside a jit
         if int(sol.state.status) != 0:
-            raise SimulationError(failure_message(sol, None if dt is None else float(dt)), sol)
+            raise SimulationError(
+                failure_message(sol, float(dt) if is_concrete(dt) and dt is not None else dt), sol
+            )
         return sol
     if model.devices is not None and len(model.devices) > 1:
         # eqx.error_if raises on one device while the others wait for it in the step's all-reduce:
@@ -519,14 +525,24 @@ def _finish(sol: Solution, dt, throw: bool, model: Model) -> Solution:
             "pass throw=False and read Solution.state.status or Solution.failure(), or call simulate "
             "outside the transformation"
         )
-    return eqx.error_if(
-        sol,
-        sol.state.status != 0,
+    message = (
         "jaxmpm: the run broke down: a step failed one of its checks (F <= 0, a non-finite state, a "
         "particle leaving the grid, dt beyond the stable limit, negative internal energy, ...; see "
         "jaxmpm.status). Inside a jit the step, particle and quantity cannot be named: run with "
-        "throw=False and read Solution.failure(), or call simulate outside the jit.",
+        "throw=False and read Solution.failure(), or call simulate outside the jit."
     )
+    # eqx.error_if ties the check to the solution's values, and a derivative under jax.jit uses none
+    # of them (jax.jit(jax.grad(...)) of a sum of positions needs no position): the check would be
+    # dropped with them, and the derivative returned as if the run had finished. A debug callback
+    # is an effect, which JAX keeps.
+    jax.debug.callback(functools.partial(_raise_if_broken, message), sol.state.status)
+    return eqx.error_if(sol, sol.state.status != 0, message)
+
+
+def _raise_if_broken(message: str, status) -> None:
+    """Raise ``RuntimeError(message)`` if a status (or any of a batch's) is not 0 (a host callback)."""
+    if np.any(np.asarray(status) != 0):
+        raise RuntimeError(message)
 
 
 @typing.no_type_check  # validates every argument itself, raising ValueError (see _validate)
@@ -675,10 +691,12 @@ def simulate(
     Raises:
         ValueError: bad input, before anything is traced: among others a scene class for a scene
             object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, a ``checkpoint`` that is
-            not ``True``, ``False`` or an integer >= 1, a ``saveat`` that names no field the run
-            has (``C`` of a FLIP run), ``devices`` the particles do not split evenly over, or
-            several devices with ``throw=True`` inside ``jax.jit`` or ``jax.vmap``.
-        SimulationError: the run broke down; ``error.solution`` holds the last good state.
+            not ``True``, ``False`` or an integer >= 1, or ``devices`` the particles do not split
+            evenly over; and while the run is traced, before anything is compiled or run, a
+            ``saveat`` that names no field the run has (``C`` of a FLIP run), or several devices
+            with ``throw=True`` inside ``jax.jit`` or ``jax.vmap`` (only the trace tells).
+        SimulationError: the run broke down; ``error.solution`` holds the last good state (also
+            under ``jax.grad`` or ``jax.jvp`` outside a jit, where the state is traced).
     """
     model, dt_arr, n, saveat = prepare(
         scene,

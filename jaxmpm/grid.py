@@ -27,7 +27,9 @@ def _as_array(value):
     if not is_real(value) or is_bool(value):
         return value
     arr = np.asarray(value)
-    return jnp.asarray(arr, dtype=arr.dtype if np.issubdtype(arr.dtype, np.floating) else float)
+    # A floating array keeps its dtype as JAX holds it (float64 only with float64 on, without a
+    # warning); integers become the default float.
+    return jnp.asarray(arr) if np.issubdtype(arr.dtype, np.floating) else jnp.asarray(arr, dtype=float)
 
 
 def _check_x_min(x_min) -> None:

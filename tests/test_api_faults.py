@@ -256,6 +256,38 @@ def test_the_derivative_of_a_run_broken_by_a_non_finite_step_is_that_of_its_last
     np.testing.assert_allclose(np.asarray(both), [last_good, float(jax.grad(f)(200.0, 12))], rtol=1e-14)
 
 
+@pytest.mark.slow
+def test_a_jitted_derivative_of_a_run_that_broke_down_raises():
+    """``jax.jit(jax.grad(f))`` of a sum of positions uses none of the solution's values, only its
+    derivative: the breakdown is raised all the same (with ``throw=True``), in forward mode too, and a
+    healthy run's jitted derivative is the unjitted one."""
+
+    def f(dt):
+        return jnp.sum(jm.simulate(jm.GasExpansion(cells=2, pad=2), jm.SPQ(), dt=dt, steps=3).state.x)
+
+    for derivative in (jax.grad(f), jax.jacfwd(f)):
+        with pytest.raises(Exception, match="jaxmpm: the run broke down: a step failed one of its checks"):
+            jax.block_until_ready(jax.jit(derivative)(1e-3))  # dt beyond the stable limit at step 1
+    assert float(jax.jit(jax.grad(f))(1e-6)) == float(jax.grad(f)(1e-6)) != 0.0
+
+
+def test_a_run_that_broke_down_under_grad_in_dt_names_the_step_in_steps_of_dt():
+    """Outside a jit, ``jax.grad`` in ``dt`` traces the time step but not the status: the breakdown is
+    raised as a ``SimulationError`` naming the step, its time in steps of ``dt``, the particle and
+    the quantity."""
+
+    def f(dt):
+        return jnp.sum(jm.simulate(jm.GasExpansion(cells=2, pad=2), jm.SPQ(), dt=dt, steps=3).state.x)
+
+    with pytest.raises(
+        jm.SimulationError,
+        match=r"^jaxmpm: the run broke down at step 1 \(t = 1 dt\): particle 0 \(at step 0\): time step "
+        r"beyond the stable limit .*The state is traced by a transformation",
+    ):
+        jax.grad(f)(1e-3)
+    assert float(jax.grad(f)(1e-6)) != 0.0
+
+
 def test_saveat_fields_is_a_tuple_of_names_and_throw_a_bool():
     # (the suite's runtime type checks refuse fields="x" at the call already; this is the check a
     # user without them meets)

@@ -529,6 +529,7 @@ def test_a_fold_check_that_breaks_down_is_reported_and_the_benchmark_goes_on(mon
         (dict(dtypes="f64,"), "--dtypes has an empty item"),
         (dict(codes="jaxmpm", interpolators="spq,,mpq"), "--interpolators has an empty item"),
         (dict(sizes="1000,"), "--sizes has an empty item"),
+        (dict(sizes=""), "--sizes needs at least one particle count in 1D (even, two per cell), got ''"),
         (dict(sizes_2d="16,"), "--sizes-2d has an empty item"),
         (dict(sizes_3d=",64"), "--sizes-3d has an empty item"),
         (dict(sizes="2", steps="100"), "the smallest size for 100 steps is 32"),

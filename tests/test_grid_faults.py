@@ -132,3 +132,20 @@ def test_grid_takes_a_traced_spacing_and_position():
     # a scene's grid under jax.grad with respect to its spacing
     d = jax.grad(lambda h: jm.GasExpansion(cells=2, h=h, pad=1).grid().x_max[0])(0.25)
     assert float(d) == 3.0
+
+
+def test_grid_box_takes_python_numbers_in_float32_without_a_warning():
+    """With float64 off (JAX's default), lists and Python numbers become float32 silently, as JAX makes
+    them; an explicit float64 request would warn that it is truncated."""
+    import warnings
+
+    jax.config.update("jax_enable_x64", False)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            grids = [box([0.0, 0.0], 0.1, (3, 3)), raw(jm.Grid)(x_min=[0.0], h=0.1, n_nodes=5)]
+            grids.append(box(np.zeros(1), np.float64(0.1), (4,)))  # NumPy float64 too
+        for grid in grids:
+            assert grid.x_min.dtype == jnp.float32 and jnp.asarray(grid.h).dtype == jnp.float32
+    finally:
+        jax.config.update("jax_enable_x64", True)

@@ -71,6 +71,9 @@ SCRIPT = textwrap.dedent(
         return jm.simulate(sc, jm.CPDI(), dt=5e-6, steps=20, devices=devices).state.x[-1, 0]
     ga, gb = jax.grad(f)(3e5, None), jax.grad(f)(3e5, 4)
     r["grad"] = [float(ga), float(gb)]
+    # ... and in the time step, which jax.grad traces while the status stays known
+    g = lambda dt, devices: jm.simulate(slab, jm.CPDI(), dt=dt, steps=20, devices=devices).state.x[-1, 0]
+    r["grad_dt"] = [float(jax.grad(g)(5e-6, None)), float(jax.grad(g)(5e-6, 4))]
     # a chunked run on 4 devices, saved mid-way and resumed: bit for bit
     kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=4)
     full = long_run.run(slab, jm.MPQ(), **kw)
@@ -88,9 +91,10 @@ SCRIPT = textwrap.dedent(
         for k in ("x", "v", "F", "sigma", "corners")))
     one = jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30, devices=4)
     r["resume"]["as_simulate"] = diff(one, full)
-    # refused before tracing: particles that do not split evenly (31 over 4 ran unsharded on each
-    # device), and a breakdown raised from inside jax.jit or jax.vmap (the device that found it
-    # stopped while the others waited for it in an all-reduce: the process aborted after 40 s)
+    # refused: particles that do not split evenly (31 over 4 ran unsharded on each device), before
+    # tracing, and a breakdown raised from inside jax.jit or jax.vmap (the device that found it
+    # stopped while the others waited for it in an all-reduce: the process aborted after 40 s), while
+    # the run is traced
     def refusal(f):
         try:
             f()
@@ -150,6 +154,12 @@ def test_every_interpolator_and_transfer_on_four_devices_equals_one(four_devices
 @pytest.mark.slow
 def test_gradient_through_a_sharded_run_equals_the_unsharded(four_devices):
     ga, gb = four_devices["grad"]
+    assert ga != 0.0 and abs(gb - ga) <= ROUND_OFF * abs(ga)
+
+
+@pytest.mark.slow
+def test_gradient_in_the_time_step_through_a_sharded_run_equals_the_unsharded(four_devices):
+    ga, gb = four_devices["grad_dt"]
     assert ga != 0.0 and abs(gb - ga) <= ROUND_OFF * abs(ga)
 
 

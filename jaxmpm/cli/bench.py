@@ -111,6 +111,10 @@ def _sizes(text: str, option: str, dim: int, cells_of) -> list[int]:
     Raises:
         UsageError: not integers (none in 1D), not of the form asked for, or one given twice.
     """
+    if dim == 1 and not text.strip():
+        raise UsageError(
+            f"{option} needs at least one particle count in 1D (even, two per cell), got {text!r}"
+        )
     tokens = [] if dim > 1 and not text.strip() else _items(text, option)
     try:
         sizes = [int(t) for t in tokens]
