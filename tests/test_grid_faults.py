@@ -139,6 +139,7 @@ def test_grid_box_takes_python_numbers_in_float32_without_a_warning():
     them; an explicit float64 request would warn that it is truncated."""
     import warnings
 
+    x64 = bool(jax.config.jax_enable_x64)
     jax.config.update("jax_enable_x64", False)
     try:
         with warnings.catch_warnings():
@@ -148,4 +149,4 @@ def test_grid_box_takes_python_numbers_in_float32_without_a_warning():
         for grid in grids:
             assert grid.x_min.dtype == jnp.float32 and jnp.asarray(grid.h).dtype == jnp.float32
     finally:
-        jax.config.update("jax_enable_x64", True)
+        jax.config.update("jax_enable_x64", x64)
