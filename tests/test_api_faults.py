@@ -256,15 +256,19 @@ def test_the_derivative_of_a_run_broken_by_a_non_finite_step_is_that_of_its_last
     np.testing.assert_allclose(np.asarray(both), [last_good, float(jax.grad(f)(200.0, 12))], rtol=1e-14)
 
 
+def _sum_of_positions(dt):
+    """The sum of the final positions of a small SPQ run of 3 steps of ``dt`` (1e-3 is beyond the
+    stable limit at step 1; 1e-6 runs healthy)."""
+    return jnp.sum(jm.simulate(jm.GasExpansion(cells=2, pad=2), jm.SPQ(), dt=dt, steps=3).state.x)
+
+
 @pytest.mark.slow
 def test_a_jitted_derivative_of_a_run_that_broke_down_raises():
     """``jax.jit(jax.grad(f))`` of a sum of positions uses none of the solution's values, only its
     derivative: the breakdown is raised all the same (with ``throw=True``), in forward mode too, and a
     healthy run's jitted derivative is the unjitted one."""
 
-    def f(dt):
-        return jnp.sum(jm.simulate(jm.GasExpansion(cells=2, pad=2), jm.SPQ(), dt=dt, steps=3).state.x)
-
+    f = _sum_of_positions
     for derivative in (jax.grad(f), jax.jacfwd(f)):
         with pytest.raises(Exception, match="jaxmpm: the run broke down: a step failed one of its checks"):
             jax.block_until_ready(jax.jit(derivative)(1e-3))  # dt beyond the stable limit at step 1
@@ -276,9 +280,7 @@ def test_a_run_that_broke_down_under_grad_in_dt_names_the_step_in_steps_of_dt():
     raised as a ``SimulationError`` naming the step, its time in steps of ``dt``, the particle and
     the quantity."""
 
-    def f(dt):
-        return jnp.sum(jm.simulate(jm.GasExpansion(cells=2, pad=2), jm.SPQ(), dt=dt, steps=3).state.x)
-
+    f = _sum_of_positions
     with pytest.raises(
         jm.SimulationError,
         match=r"^jaxmpm: the run broke down at step 1 \(t = 1 dt\): particle 0 \(at step 0\): time step "

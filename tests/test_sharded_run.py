@@ -152,14 +152,9 @@ def test_every_interpolator_and_transfer_on_four_devices_equals_one(four_devices
 
 
 @pytest.mark.slow
-def test_gradient_through_a_sharded_run_equals_the_unsharded(four_devices):
-    ga, gb = four_devices["grad"]
-    assert ga != 0.0 and abs(gb - ga) <= ROUND_OFF * abs(ga)
-
-
-@pytest.mark.slow
-def test_gradient_in_the_time_step_through_a_sharded_run_equals_the_unsharded(four_devices):
-    ga, gb = four_devices["grad_dt"]
+@pytest.mark.parametrize("key", ["grad", "grad_dt"], ids=["in-P0", "in-dt"])
+def test_gradient_through_a_sharded_run_equals_the_unsharded(four_devices, key):
+    ga, gb = four_devices[key]
     assert ga != 0.0 and abs(gb - ga) <= ROUND_OFF * abs(ga)
 
 
