@@ -24,11 +24,13 @@ from ._step import (
     check_dt,
     check_parts,
     check_structure,
+    pad_particles,
     setup,
     shard_particles,
     stable_dt,
     start_state,
     take_step,
+    unpad_particles,
 )
 from ._util import as_float, det, host
 from .interpolators import AbstractInterpolator
@@ -295,6 +297,10 @@ def advance(
 ) -> tuple[State, dict[str, Array] | None]:
     """Take ``steps`` steps from ``state`` in one scan (the loop every driver has in common).
 
+    Over several devices the particles are laid out over them (``shard_particles``), padded first
+    with inert copies to an equal share a device (``pad_particles``); the state returned and the
+    fields saved hold the real particles only.
+
     Args:
         model: the run.
         setup: what it derives once (``jaxmpm.setup(model)``).
@@ -310,7 +316,11 @@ def advance(
         ``(state, saved)``, ``saved`` a dict of fields with a leading axis ``steps // k``, or ``None``.
     """
 
+    n_real = state.x.shape[0]
+    setup, state = pad_particles(model, setup, state)  # devices that do not divide the particles
     n_particles = state.x.shape[0]
+    setup = eqx.tree_at(lambda z: z.body, setup, shard_particles(model, setup.body, n_particles))
+    state = shard_particles(model, state, n_particles)
 
     def one(state, _):
         return shard_particles(model, taken(state), n_particles), None
@@ -349,20 +359,23 @@ def advance(
         state = jax.lax.scan(block, state, None, length=blocks)[0]
         return scan(state, rem)
 
+    def real(state):  # the real particles, laid out as the caller's state
+        return shard_particles(model, unpad_particles(state, n_real), n_real)
+
     if saveat.every is None:
-        return run(state, steps), None
+        return real(run(state, steps)), None
     k = saveat.every
     n_out, rem = divmod(steps, k)
 
     def block(state, _):
         state = run(state, k)
-        out = save_fields(state, saveat.fields)
+        out = save_fields(unpad_particles(state, n_real), saveat.fields)
         if isinstance(dt, ToEnd):
             out["t"] = state.t
         return state, out
 
     state, saved = jax.lax.scan(block, state, None, length=n_out)
-    return run(state, rem), saved
+    return real(run(state, rem)), saved
 
 
 def finish_to_end(state: State, dt: ToEnd) -> State:
@@ -679,8 +692,9 @@ def simulate(
         volume_average: ``None`` (default), ``"cell"`` or ``"node"``: the stress at the volume-averaged
             ``F`` (J-bar, ``jaxmpm.Model``); refused for regions of different materials.
         devices: ``None`` (default: one device), a count ``k`` (the first ``k`` of ``jax.devices()``)
-            or a sequence of devices: the particles are sharded over them (they must split evenly),
-            the grid replicated and its sums added across them each step. Equal to the run on one
+            or a sequence of devices: the particles are sharded over them (padded with inert copies
+            of the last particle to an equal share a device, which the solution leaves out), the
+            grid replicated and its sums added across them each step. Equal to the run on one
             device to round-off.
         throw: raise on breakdown (default); with ``False`` return the solution with its status.
             A run over several devices inside ``jax.jit`` or ``jax.vmap`` needs ``False``.
@@ -690,11 +704,11 @@ def simulate(
 
     Raises:
         ValueError: bad input, before anything is traced: among others a scene class for a scene
-            object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, a ``checkpoint`` that is
-            not ``True``, ``False`` or an integer >= 1, or ``devices`` the particles do not split
-            evenly over; and while the run is traced, before anything is compiled or run, a
-            ``saveat`` that names no field the run has (``C`` of a FLIP run), or several devices
-            with ``throw=True`` inside ``jax.jit`` or ``jax.vmap`` (only the trace tells).
+            object, ``cfl`` or ``max_steps`` with ``dt`` and ``steps``, or a ``checkpoint`` that is
+            not ``True``, ``False`` or an integer >= 1; and while the run is traced, before anything
+            is compiled or run, a ``saveat`` that names no field the run has (``C`` of a FLIP run),
+            or several devices with ``throw=True`` inside ``jax.jit`` or ``jax.vmap`` (only the
+            trace tells).
         SimulationError: the run broke down; ``error.solution`` holds the last good state (also
             under ``jax.grad`` or ``jax.jvp`` outside a jit, where the state is traced).
     """

@@ -13,6 +13,7 @@ Optional physics enters by Python structure while tracing (``if scene.body_force
 so the compiled step holds only what the scene and the run declared.
 """
 
+import dataclasses
 import functools
 import math
 import operator
@@ -265,7 +266,9 @@ class Model(eqx.Module):
             particles are sharded over a 1D mesh of them (``jax.sharding``), the grid is replicated.
             Each device scatters its own particles to the grid, the partial grid sums are added
             across the devices (an all-reduce), every device updates the whole grid, and each
-            gathers for its own particles. The result equals the one-device run up to the order of
+            gathers for its own particles. The run adds inert copies of the last particle, so that
+            each device holds the same number, a multiple of 8 (``pad_particles``), and drops them
+            from what it returns. The result equals the one-device run up to the order of
             the grid sums (round-off; ``shard_particles``).
 
     Raises:
@@ -292,7 +295,6 @@ class Model(eqx.Module):
         if self.devices is not None:
             check_devices(self.devices)
             _check_every_process(self.devices)
-            _check_even_split(self)
         if self.ordering not in ORDERINGS:
             raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
         if self.volume_average is not None and self.volume_average not in VOLUME_AVERAGES:
@@ -315,23 +317,6 @@ def _check_every_process(devices: tuple[jax.Device, ...]) -> None:
             f"devices must include devices of every process when several run ({count} processes; "
             f"these are of process {', '.join(map(str, of))} only): pass devices=len(jax.devices()) "
             "or jax.devices()"
-        )
-
-
-def _check_even_split(model: Model) -> None:
-    """Refuse devices that the real particles do not split evenly over: each device holds the same
-    number of them (an uneven split ran unsharded, the whole run on every device)."""
-    k = len(model.devices)
-    if k == 1:
-        return
-    n = jax.eval_shape(lambda m: setup(m).body.X, model).shape[0]
-    if n % k:
-        here = len(jax.devices())
-        counts = [c for c in range(1, here + 1) if n % c == 0]
-        raise ValueError(
-            f"devices: the {n} particles of {model.scene.name} do not split evenly over {k} devices (each "
-            f"device holds the same number of them); device counts that divide {n} (of the {here} here): "
-            f"{', '.join(map(str, counts))}"
         )
 
 
@@ -426,6 +411,9 @@ def check_devices(devices) -> tuple[jax.Device, ...]:
 def shard_particles(model: Model, tree, n: int):
     """``tree`` laid out over ``model.devices``: arrays whose leading axis has length ``n`` (the
     particles) sharded over the devices, every other array replicated; unchanged for one device.
+    Where the devices do not divide ``n``, every array is replicated (XLA's own split of such an axis
+    gathers every particle's node indices on every device each step); the step's loop runs on the
+    particles padded to a multiple (``pad_particles``).
 
     Only the layout changes, never a value: XLA's partitioner splits the step's work by it, adding
     the partial grid sums across the devices. Those sums are added in another order than on one
@@ -444,11 +432,85 @@ def shard_particles(model: Model, tree, n: int):
     mesh = jax.sharding.Mesh(np.asarray(model.devices, dtype=object), ("particles",))
     spread = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("particles"))
     whole = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec())
+    split = n % len(model.devices) == 0
 
     def lay(a):
-        return jax.lax.with_sharding_constraint(a, spread if a.ndim and a.shape[0] == n else whole)
+        return jax.lax.with_sharding_constraint(a, spread if split and a.ndim and a.shape[0] == n else whole)
 
     return jax.tree.map(lay, tree)
+
+
+_PARTICLE_FIELDS = ("x", "v", "F", "sigma", "C", "e", "internal")
+"""The fields of a ``State`` that hold one row per particle."""
+
+
+PAD_SHARE = 8
+"""Over several devices each device holds a multiple of this many particles. XLA's CPU loops run
+slower over an odd count: 70 steps of 1D SPQ in float64 over 2 forced host devices took 1.07-1.14 s
+with 250,001 or 250,003 particles a device, 0.84-0.94 s with 250,004 or 250,008 (``docs/scale.md``,
+``experiments/uneven_shards.py``)."""
+
+
+def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, State]:
+    """The body and state with inert particles added, so that over several devices each holds the
+    same number, a multiple of ``PAD_SHARE``.
+
+    Each added particle is a copy of the last one (position, domain, corners, deformation, stress,
+    velocity, energy, internal variables) with zero mass and zero volume: it gives the grid no mass,
+    momentum or force, and it moves and deforms exactly as the particle it copies, so it fails no
+    check before that one (a failure names the lowest index, a real particle's). The drivers pad
+    before the time loop and drop the copies after it (``unpad_particles``).
+
+    Args:
+        model: the run (``model.devices``).
+        setup: ``setup(model)``.
+        state: a state of ``model``'s particles.
+
+    Returns:
+        ``(setup, state)``, unchanged on one device or where the particles split so already.
+    """
+    n = setup.body.n
+    k = 1 if model.devices is None else len(model.devices)
+    extra = 0 if k == 1 else -n % (PAD_SHARE * k)
+    if not extra:
+        return setup, state
+
+    def copies(a):
+        return jnp.concatenate([a, jnp.broadcast_to(a[-1:], (extra,) + a.shape[1:])])
+
+    def zeros(a):
+        return jnp.concatenate([a, jnp.zeros((extra,) + a.shape[1:], a.dtype)])
+
+    b = setup.body
+    body = Body(
+        X=copies(b.X),
+        r0=copies(b.r0),
+        m=zeros(b.m),
+        V0=zeros(b.V0),
+        X_corners=b.X_corners,
+        corner_ids=copies(b.corner_ids),
+        boundary=copies(b.boundary),
+        region=None if b.region is None else copies(b.region),
+    )
+    fields = {name: jax.tree.map(copies, getattr(state, name)) for name in _PARTICLE_FIELDS}
+    return eqx.tree_at(lambda z: z.body, setup, body), dataclasses.replace(state, **fields)
+
+
+def unpad_particles(state: State, n: int) -> State:
+    """``state`` without the particles ``pad_particles`` added: its first ``n`` (unchanged if it has
+    ``n``).
+
+    Args:
+        state: a state of the padded particles.
+        n: the number of real particles.
+
+    Returns:
+        The state of the real particles.
+    """
+    if state.x.shape[0] == n:
+        return state
+    fields = {name: jax.tree.map(lambda a: a[:n], getattr(state, name)) for name in _PARTICLE_FIELDS}
+    return dataclasses.replace(state, **fields)
 
 
 def place_particles(model: Model, tree, n: int):
@@ -464,11 +526,12 @@ def place_particles(model: Model, tree, n: int):
         ``tree`` as JAX arrays on the devices.
     """
     mesh = jax.sharding.Mesh(np.asarray(model.devices, dtype=object), ("particles",))
+    split = n % len(model.devices) == 0
 
     def put(a):
         spec = (
             jax.sharding.PartitionSpec("particles")
-            if a.ndim and a.shape[0] == n
+            if split and a.ndim and a.shape[0] == n
             else jax.sharding.PartitionSpec()
         )
         return jax.make_array_from_callback(a.shape, jax.sharding.NamedSharding(mesh, spec), lambda i: a[i])

@@ -160,6 +160,9 @@ BAD = [
     ("talk.py", ["out", "extra"]),
     ("sensitivity.py", ["--smalll"]),
     ("sensitivity.py", ["a", "b"]),
+    ("uneven_shards.py", ["--n", "1000,0"]),
+    ("uneven_shards.py", ["--layouts", "one,foo"]),
+    ("uneven_shards.py", ["--devices", "1"]),
 ]
 
 
@@ -210,6 +213,8 @@ DOCUMENTED = [
     ("talk.py", []),
     ("talk.py", ["out", "--small"]),
     ("thread_use.py", ["--dtype", "f64", "--n", "1024", "--dim", "2"]),
+    ("uneven_shards.py", []),
+    ("uneven_shards.py", ["--n", "1000,1001", "--devices", "4", "--layouts", "one,aligned"]),
 ]
 
 

@@ -73,6 +73,12 @@ WORKER = textwrap.dedent(
                        multihost_utils.process_allgather(getattr(full.state, k), tiled=True))
         for k in ("x", "v", "F", "sigma", "corners"))
     out["resume_x"] = np.asarray(multihost_utils.process_allgather(res.state.x, tiled=True)).ravel().tolist()
+    # 31 particles, which the 4 devices do not divide: padded, run over both, saved by the first
+    odd = jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40)
+    sol = jm.simulate(odd, jm.CPDI(), dt=5e-6, steps=20, devices=jax.devices())
+    out["odd_x"] = np.asarray(multihost_utils.process_allgather(sol.state.x, tiled=True)).ravel().tolist()
+    long_run.run(odd, jm.CPDI(), out=f"{sys.argv[3]}/odd.npz", dt=5e-6, steps=8, chunk=4, progress=False,
+                 devices=jax.devices())
     # a calibration's starts spread over both processes' devices (one start each)
     sys.path.insert(0, sys.argv[4])  # the tests' helpers
     from helpers import calibration_case
@@ -172,6 +178,14 @@ def test_two_processes_equal_one(tmp_path):
     assert a["resume_identical"] and b["resume_identical"]
     x = np.asarray(jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30).state.x).ravel()
     assert np.max(np.abs(np.asarray(a["resume_x"]) - x)) <= 1e-13 * np.max(np.abs(x))
+    odd = jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40)
+    x = np.asarray(jm.simulate(odd, jm.CPDI(), dt=5e-6, steps=20).state.x).ravel()
+    assert a["odd_x"] == b["odd_x"] and len(x) == 31
+    assert np.max(np.abs(np.asarray(a["odd_x"]) - x)) <= 1e-13 * np.max(np.abs(x))
+    saved, meta = jm.long_run.load(tmp_path / "odd.npz")
+    x = np.asarray(jm.simulate(odd, jm.CPDI(), dt=5e-6, steps=8).state.x)
+    assert meta["devices"] == 4 and meta["step"] == 8 and saved.state.x.shape == (31, 1)
+    assert np.max(np.abs(np.asarray(saved.state.x) - x)) <= 1e-13 * np.max(np.abs(x))
     # the calibration: every process has every start's fit; each start as fitted in one process (the
     # batch of one start per device is compiled apart from the batch of four: round-off, measured 1e-15)
     model, t, data, starts, dt = calibration_case()

@@ -91,21 +91,77 @@ SCRIPT = textwrap.dedent(
         for k in ("x", "v", "F", "sigma", "corners")))
     one = jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30, devices=4)
     r["resume"]["as_simulate"] = diff(one, full)
-    # refused: particles that do not split evenly (31 over 4 ran unsharded on each device), before
-    # tracing, and a breakdown raised from inside jax.jit or jax.vmap (the device that found it
-    # stopped while the others waited for it in an all-reduce: the process aborted after 40 s), while
-    # the run is traced
+    # particles that the devices do not divide: padded with inert copies of the last one
+    u = r["uneven"] = {}
+    odd = jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40)  # 31 particles over 4 devices
+    for i, make in jm.INTERPOLATORS.items():
+        kw = dict(dt=5e-6, steps=20, throw=False)
+        a, b = jm.simulate(odd, make(), **kw), jm.simulate(odd, make(), devices=4, **kw)
+        u[f"slab-{i}"] = dict(diff=diff(a, b), a=failure(a), b=failure(b), n=int(b.state.x.shape[0]))
+    wide, cpgimp = jm.GasSlab(cells=31, h=1 / 31, pad=60), jm.INTERPOLATORS["cpgimp"]  # 62; the last breaks
+    kw = dict(dt=5e-6, steps=20, transfer=jm.APIC(), throw=False)
+    a, b = jm.simulate(wide, cpgimp(), **kw), jm.simulate(wide, cpgimp(), devices=4, **kw)
+    u["slab-cpgimp-apic"] = dict(diff=diff(a, b), a=failure(a), b=failure(b), n=int(b.state.x.shape[0]))
+    for i, dim, k in (("spq", 1, 4), ("mpq", 1, 4), ("mpq", 2, 3)):  # 14 over 4, 196 over 3
+        sc = jm.GasExpansion(cells=7, pad=4, dim=dim)
+        kw = dict(dt=1e-5, steps=25, artificial_cells=1)
+        a = jm.simulate(sc, jm.INTERPOLATORS[i](), **kw)
+        b = jm.simulate(sc, jm.INTERPOLATORS[i](), devices=k, **kw)
+        u[f"artificial-{i}-{dim}d"] = dict(diff=diff(a, b), a=failure(a), b=failure(b),
+                                           n=int(b.state.x.shape[0]))
+    for i in ("cpdi", "mpq"):  # 79 particles over 4, symmetry planes, traction, CFL steps to an end time
+        disk = jm.BlastDisk(cells=5, pad=8)
+        kw = dict(t_end=0.5 * float(disk.transit_time), cfl=0.3, max_steps=400, saveat=jm.SaveAt(every=10))
+        a = jm.simulate(disk, jm.INTERPOLATORS[i](), **kw)
+        b = jm.simulate(disk, jm.INTERPOLATORS[i](), devices=4, **kw)
+        u[f"disk-{i}"] = dict(diff=diff(a, b), a=failure(a), b=failure(b), n=int(b.state.x.shape[0]),
+                              steps=[int(a.state.step), int(b.state.step)],
+                              history=[list(a.history["x"].shape), list(b.history["x"].shape)],
+                              history_diff=float(np.max(np.abs(np.asarray(a.history["x"]) -
+                                                               np.asarray(b.history["x"])))))
+    det = jm.Detonation(L=0.02, cells=43, ppc=1)  # two regions, energy and burn fraction: 43 over 4
+    kw = dict(dt=1e-8, steps=30, viscosity=jm.ArtificialViscosity())
+    a, b = jm.simulate(det, jm.CPDI(), **kw), jm.simulate(det, jm.CPDI(), devices=4, **kw)
+    u["detonation"] = dict(diff=diff(a, b), a=failure(a), b=failure(b), n=int(b.state.x.shape[0]),
+                           lam=float(np.max(np.abs(np.asarray(a.state.internal["lambda"]) -
+                                                   np.asarray(b.state.internal["lambda"])))),
+                           e=float(np.max(np.abs(np.asarray(a.state.e) - np.asarray(b.state.e)))
+                                   / np.max(np.abs(np.asarray(a.state.e)))))
+    g = lambda P0, devices: jm.simulate(jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40, P0=P0), jm.CPDI(),
+                                        dt=5e-6, steps=20, devices=devices).state.x[-1, 0]
+    r["grad_uneven"] = [float(jax.grad(g)(3e5, None)), float(jax.grad(g)(3e5, 4))]
+    # each device holds its share of the padded particles: 8 of 32 (31 and one inert copy)
+    from jaxmpm._simulate import prepare, _run_scan_jit
+    model, dt_a, n, saveat = prepare(odd, jm.SPQ(), dt=5e-6, steps=20, devices=4)
+    text = _run_scan_jit.lower(model, dt_a, n, saveat, None).compile().compiled.as_text()
+    loop = [line.split(" while(")[0] for line in text.splitlines()  # the time loop's carry
+            if " while(" in line and 'op_name="jit(run_scan)/while"' in line]
+    u["share"] = [len(loop), "f64[8,1,1]" in loop[0], "f64[32,1,1]" in loop[0] or "f64[31,1,1]" in loop[0]]
+    kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=4)
+    full = long_run.run(odd, jm.MPQ(), **kw)
+    path = pathlib.Path(tempfile.mkdtemp()) / "odd.npz"
+    long_run.run(odd, jm.MPQ(), out=path, checkpoint_every=2, **(kw | dict(steps=14)))
+    _, meta = long_run.load(path)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta["steps"] = 30
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez(path, **arrays)
+    res = long_run.resume(path, progress=False)
+    u["resume"] = dict(identical=all(
+        np.array_equal(np.asarray(getattr(res.state, k)), np.asarray(getattr(full.state, k)))
+        for k in ("x", "v", "F", "sigma", "corners")),
+        as_simulate=diff(jm.simulate(odd, jm.MPQ(), dt=5e-6, steps=30, devices=4), full),
+        one_device=diff(jm.simulate(odd, jm.MPQ(), dt=5e-6, steps=30), full))
+    # refused: a breakdown raised from inside jax.jit or jax.vmap (the device that found it stopped
+    # while the others waited for it in an all-reduce: the process aborted after 40 s), while the
+    # run is traced
     def refusal(f):
         try:
             f()
         except ValueError as e:
             return str(e)
-    uneven = jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40)
-    r["refused"] = dict(
-        uneven=refusal(lambda: jm.simulate(uneven, jm.CPDI(), dt=5e-6, steps=2, devices=4)),
-        uneven_3=refusal(lambda: jm.simulate(jm.BlastDisk(cells=6, pad=8), jm.CPDI(), dt=1e-6, steps=2,
-                                             devices=3)),
-    )
+    r["refused"] = {}
     broken = lambda b: jm.simulate(jm.GasExpansion(cells=8, pad=1, beta=b), jm.CPDI(), dt=1e-4, steps=300,
                                    devices=4).state.x[-1, 0]
     r["refused"]["jit"] = refusal(lambda: jax.jit(broken)(200.0))
@@ -166,14 +222,39 @@ def test_sharded_chunked_run_resumes_bit_for_bit(four_devices):
 
 
 @pytest.mark.slow
-def test_a_sharded_run_refuses_uneven_particles_and_raising_inside_a_transformation(four_devices):
+def test_particles_the_devices_do_not_divide_run_spread_and_equal_one_device(four_devices):
+    u = four_devices["uneven"]
+    runs = {k: v for k, v in u.items() if "diff" in v}
+    assert len(runs) == len(jm.INTERPOLATORS) + 1 + 3 + 2 + 1
+    for name, run in runs.items():
+        assert max(run["diff"].values()) < ROUND_OFF, (name, run["diff"])
+        assert run["a"] == run["b"], (name, run)  # the same status, failing step and particle
+    # the states hold the real particles only (the inert copies are dropped)
+    assert {k: v["n"] for k, v in runs.items() if k.startswith("slab-")} == {
+        **{f"slab-{i}": 31 for i in jm.INTERPOLATORS},
+        "slab-cpgimp-apic": 62,
+    }
+    assert [u[f"artificial-{i}"]["n"] for i in ("spq-1d", "mpq-1d", "mpq-2d")] == [14, 14, 196]
+    # the last of 62 particles breaks down, and not its copies: named the same on 4 devices
+    assert u["slab-cpgimp-apic"]["b"][0] == jm.status.STENCIL and u["slab-cpgimp-apic"]["b"][2] == 61
+    for i in ("cpdi", "mpq"):
+        disk = u[f"disk-{i}"]
+        assert disk["n"] == 79 and disk["steps"][0] == disk["steps"][1] > 10
+        assert disk["history"][0] == disk["history"][1] and disk["history"][0][1] == 79
+        assert disk["history_diff"] < ROUND_OFF
+    det = u["detonation"]
+    assert det["n"] == 43 and det["lam"] < ROUND_OFF and det["e"] < ROUND_OFF
+    ga, gb = four_devices["grad_uneven"]
+    assert ga != 0.0 and abs(gb - ga) <= ROUND_OFF * abs(ga)
+    # spread, not whole on every device: the step's loop holds 8 particles a device, never all 32
+    assert u["share"] == [1, True, False]
+    assert u["resume"]["identical"] and max(u["resume"]["as_simulate"].values()) == 0.0
+    assert max(u["resume"]["one_device"].values()) < ROUND_OFF
+
+
+@pytest.mark.slow
+def test_a_sharded_run_refuses_raising_inside_a_transformation(four_devices):
     r = four_devices["refused"]
-    assert r["uneven"] == (
-        "devices: the 31 particles of gas-slab do not split evenly over 4 devices (each device holds "
-        "the same number of them); device counts that divide 31 (of the 4 here): 1"
-    )
-    assert r["uneven_3"].startswith("devices: the 112 particles of blast-disk do not split evenly over 3")
-    assert r["uneven_3"].endswith("device counts that divide 112 (of the 4 here): 1, 2, 4")
     for how in ("jit", "vmap"):
         assert r[how] is not None and r[how].startswith(
             "a run over several devices cannot raise its breakdown from inside jax.jit or jax.vmap"
