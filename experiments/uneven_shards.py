@@ -1,11 +1,14 @@
-"""One run over several devices when the devices do not divide its particles: how each layout runs.
+"""Particle counts that are not a multiple of 8, or that the devices do not divide: how each layout runs.
 
-The 1D gas slab (SPQ, float64, ``--n`` particles), each layout in a process of its own with
-``--devices`` forced host devices (``XLA_FLAGS=--xla_force_host_platform_device_count``):
+The 1D gas slab (``--interpolator``, float64, ``--n`` particles), each layout in a process of its own
+with ``--devices`` forced host devices (``XLA_FLAGS=--xla_force_host_platform_device_count``; the
+one-device layouts without):
 
-- ``one``: one device (``devices=None``);
-- ``aligned``: over the devices as ``simulate`` runs it, padded with inert particles to an equal
-  share a device that is a multiple of ``jaxmpm._step.PAD_SHARE``;
+- ``one``: one device (``devices=None``), as ``simulate`` runs it, padded with inert particles to a
+  multiple of ``jaxmpm._step.PAD_SHARE``;
+- ``one-unpadded``: one device, not padded;
+- ``aligned``: over the devices as ``simulate`` runs it, padded to an equal share a device that is a
+  multiple of ``PAD_SHARE``;
 - ``equal``: padded to an equal share only (``PAD_SHARE = 1``);
 - ``xla``: not padded, the particle axis laid out over the devices all the same, so that XLA's
   partitioner splits an axis the devices do not divide in its own way.
@@ -17,7 +20,7 @@ collectives XLA runs in the loop each step.
 ::
 
     python experiments/uneven_shards.py [--n 500000,500001,500002,500008] [--devices 2]
-        [--layouts one,aligned,equal,xla]
+        [--layouts one,one-unpadded,aligned,equal,xla] [--interpolator spq]
 """
 
 import argparse
@@ -28,9 +31,9 @@ import subprocess
 import sys
 import time
 
-from _entry import positive
+from _entry import interpolators, positive
 
-LAYOUTS = ("one", "aligned", "equal", "xla")
+LAYOUTS = ("one", "one-unpadded", "aligned", "equal", "xla")
 
 
 def _counts(text: str) -> list[int]:
@@ -45,7 +48,7 @@ def _layouts(text: str) -> list[str]:
     return names
 
 
-def child(layout: str, n: int, devices: int) -> dict:
+def child(layout: str, n: int, devices: int, interpolator: str) -> dict:
     """Time one layout in this process (its forced device count set by the parent)."""
     import jax
     import numpy as np
@@ -57,6 +60,8 @@ def child(layout: str, n: int, devices: int) -> dict:
 
     if layout == "equal":
         stp.PAD_SHARE = 1
+    if layout == "one-unpadded":
+        sim.pad_particles = lambda model, setup, state: (setup, state)
     if layout == "xla":
 
         def spread(model, tree, count):
@@ -73,16 +78,17 @@ def child(layout: str, n: int, devices: int) -> dict:
 
         sim.pad_particles = lambda model, setup, state: (setup, state)
         sim.shard_particles = spread
-    on = None if layout == "one" else devices
+    on = None if layout.startswith("one") else devices
+    make = jm.INTERPOLATORS[interpolator]
     scene = jm.GasSlab(cells=n, h=1.0 / n, ppc=1, pad=64)
     best = {}
     for steps in (20, 70):
         times = []
         for _ in range(3):
-            sol, _, wall = jm.simulate_timed(scene, jm.SPQ(), dt=1e-9, steps=steps, devices=on)
+            sol, _, wall = jm.simulate_timed(scene, make(), dt=1e-9, steps=steps, devices=on, throw=False)
             times.append(wall)
         best[steps] = min(times)
-    model, dt, count, saveat = sim.prepare(scene, jm.SPQ(), dt=1e-9, steps=20, devices=on)
+    model, dt, count, saveat = sim.prepare(scene, make(), dt=1e-9, steps=20, devices=on)
     text = sim._run_scan_jit.lower(model, dt, count, saveat, None).compile().compiled.as_text()
     time_loop = 'op_name="jit(run_scan)/while"'
     loop = [line for line in text.splitlines() if " while(" in line and time_loop in line]
@@ -108,24 +114,28 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--n", type=_counts, default=[500_000, 500_001, 500_002, 500_008])
     parser.add_argument("--devices", type=positive, default=2, help="forced host devices (default 2)")
     parser.add_argument("--layouts", type=_layouts, default=list(LAYOUTS))
+    parser.add_argument("--interpolator", type=interpolators, default=["spq"], help="one of INTERPOLATORS")
     parser.add_argument("--child", nargs=2, metavar=("LAYOUT", "N"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        print(json.dumps(child(args.child[0], int(args.child[1]), args.devices)))
+        print(json.dumps(child(args.child[0], int(args.child[1]), args.devices, args.interpolator[0])))
         return
     if args.devices < 2:
         parser.error("--devices must be 2 or more")
+    if len(args.interpolator) != 1:
+        parser.error(f"--interpolator takes one name, got {','.join(args.interpolator)}")
     flags = os.environ.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={args.devices}"
     env = dict(os.environ, XLA_FLAGS=flags.strip())
     when = time.strftime("%Y-%m-%d %H:%M")
-    print(f"1D gas slab, SPQ, float64, {args.devices} forced host devices ({when})")
+    print(f"1D gas slab, {args.interpolator[0]}, float64, {args.devices} forced host devices ({when})")
     print("| particles | layout | ms a step | particles a device in the loop | collectives each step |")
     print("|---|---|---|---|---|")
     for n in args.n:
         for layout in args.layouts:
             out = subprocess.run(
-                [sys.executable, __file__, "--child", layout, str(n), "--devices", str(args.devices)],
-                env=env,
+                [sys.executable, __file__, "--child", layout, str(n), "--devices", str(args.devices)]
+                + ["--interpolator", args.interpolator[0]],
+                env=os.environ if layout.startswith("one") else env,  # one device: XLA's own setup
                 capture_output=True,
                 text=True,
             )

@@ -297,9 +297,9 @@ def advance(
 ) -> tuple[State, dict[str, Array] | None]:
     """Take ``steps`` steps from ``state`` in one scan (the loop every driver has in common).
 
-    Over several devices the particles are laid out over them (``shard_particles``), padded first
-    with inert copies to an equal share a device (``pad_particles``); the state returned and the
-    fields saved hold the real particles only.
+    The particles are padded with inert copies to a multiple of 8 a device (``pad_particles``), and
+    over several devices laid out over them (``shard_particles``); the state returned and the fields
+    saved hold the real particles only.
 
     Args:
         model: the run.
@@ -317,7 +317,7 @@ def advance(
     """
 
     n_real = state.x.shape[0]
-    setup, state = pad_particles(model, setup, state)  # devices that do not divide the particles
+    setup, state = pad_particles(model, setup, state)
     n_particles = state.x.shape[0]
     setup = eqx.tree_at(lambda z: z.body, setup, shard_particles(model, setup.body, n_particles))
     state = shard_particles(model, state, n_particles)

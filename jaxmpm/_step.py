@@ -445,21 +445,24 @@ _PARTICLE_FIELDS = ("x", "v", "F", "sigma", "C", "e", "internal")
 
 
 PAD_SHARE = 8
-"""Over several devices each device holds a multiple of this many particles. XLA's CPU loops run
-slower over an odd count: 70 steps of 1D SPQ in float64 over 2 forced host devices took 1.07-1.14 s
-with 250,001 or 250,003 particles a device, 0.84-0.94 s with 250,004 or 250,008 (``docs/scale.md``,
-``experiments/uneven_shards.py``)."""
+"""A run's time loop holds a multiple of this many particles on each of its devices. XLA's CPU loops
+run slower over an odd count: 70 steps of 1D SPQ in float64 took 0.73-0.78 s for 500,001 particles
+on one device against 0.55-0.61 s for 500,000, 500,002 or 500,004, and over 2 forced host devices
+1.07-1.14 s with 250,001 or 250,003 particles a device against 0.84-0.94 s with 250,004 or 250,008
+(the performance docs, ``experiments/uneven_shards.py``)."""
 
 
 def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, State]:
-    """The body and state with inert particles added, so that over several devices each holds the
-    same number, a multiple of ``PAD_SHARE``.
+    """The body and state with inert particles added, so that each of the run's devices (one, or each
+    of ``model.devices``) holds the same number, a multiple of ``PAD_SHARE``.
 
     Each added particle is a copy of the last one (position, domain, corners, deformation, stress,
     velocity, energy, internal variables) with zero mass and zero volume: it gives the grid no mass,
-    momentum or force, and it moves and deforms exactly as the particle it copies, so it fails no
-    check before that one (a failure names the lowest index, a real particle's). The drivers pad
-    before the time loop and drop the copies after it (``unpad_particles``).
+    momentum or force (it adds exact zeros to the grid's sums, so the real particles' results are
+    bit for bit those of the run without it), and it moves and deforms exactly as the particle it
+    copies, so it fails no check before that one (a failure names the lowest index, a real
+    particle's). The drivers pad before the time loop and drop the copies after it
+    (``unpad_particles``); ``step`` takes the particles as they are.
 
     Args:
         model: the run (``model.devices``).
@@ -467,11 +470,10 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
         state: a state of ``model``'s particles.
 
     Returns:
-        ``(setup, state)``, unchanged on one device or where the particles split so already.
+        ``(setup, state)``, unchanged where the particles split so already.
     """
     n = setup.body.n
-    k = 1 if model.devices is None else len(model.devices)
-    extra = 0 if k == 1 else -n % (PAD_SHARE * k)
+    extra = -n % (PAD_SHARE * (1 if model.devices is None else len(model.devices)))
     if not extra:
         return setup, state
 

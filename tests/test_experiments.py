@@ -163,6 +163,7 @@ BAD = [
     ("uneven_shards.py", ["--n", "1000,0"]),
     ("uneven_shards.py", ["--layouts", "one,foo"]),
     ("uneven_shards.py", ["--devices", "1"]),
+    ("uneven_shards.py", ["--interpolator", "spq,mpq"]),
 ]
 
 
@@ -215,6 +216,7 @@ DOCUMENTED = [
     ("thread_use.py", ["--dtype", "f64", "--n", "1024", "--dim", "2"]),
     ("uneven_shards.py", []),
     ("uneven_shards.py", ["--n", "1000,1001", "--devices", "4", "--layouts", "one,aligned"]),
+    ("uneven_shards.py", ["--n", "500001", "--layouts", "one,one-unpadded", "--interpolator", "mpq"]),
 ]
 
 

@@ -1,5 +1,6 @@
 """The time-loop driver: jit, scan, recompilation, saving, failures."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -262,3 +263,65 @@ def test_errors_compile_only_for_a_new_particle_count_and_equal_op_by_op():
     e = jm.errors(small, s.state, s.body)
     assert e["F_max_rel_interior"] is None and e["F_rms_rel_interior"] is None
     assert float(e["F_max_rel_boundary"]) >= 0.0
+
+
+def _bits(sol) -> list[bytes]:
+    return [np.asarray(a).tobytes() for a in jax.tree.leaves((sol.state, sol.body, sol.ts, sol.history))]
+
+
+def _traced_anew(scene, interpolator, **kw):
+    """``simulate``'s run, traced here (a cached program would not see a patched driver)."""
+    model, dt, n, saveat = _simulate.prepare(scene, interpolator, **kw)
+    return eqx.filter_jit(lambda model, dt: _simulate.run_scan(model, dt, n, saveat, None))(model, dt)
+
+
+def _unpadded(monkeypatch):
+    monkeypatch.setattr(_simulate, "pad_particles", lambda model, setup, state: (setup, state))
+
+
+PADDED = [
+    # (scene, interpolator, arguments): particle counts that are not a multiple of 8
+    (jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40), "spq", dict(dt=5e-6, steps=20)),
+    (jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40), "mpq", dict(dt=5e-6, steps=20, transfer=jm.APIC())),
+    # its last particle breaks down at step 16
+    (jm.GasSlab(cells=31, h=1 / 31, ppc=1, pad=40), "cpgimp", dict(dt=5e-6, steps=20, transfer=jm.APIC())),
+    (
+        jm.GasExpansion(cells=7, pad=4, dim=2, ppc=1),
+        "cpdi2",
+        dict(dt=1e-5, steps=20, artificial_cells=1, saveat=jm.SaveAt(every=5)),
+    ),
+    (jm.BlastDisk(cells=5, pad=8), "mpq", dict(t_end=1e-4, cfl=0.3, max_steps=40)),
+    (
+        jm.Detonation(L=0.02, cells=43, ppc=1),
+        "cpdi",
+        dict(dt=1e-8, steps=30, viscosity=jm.ArtificialViscosity()),
+    ),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene, name, kw", PADDED, ids=[f"{s.name}-{n}" for s, n, _ in PADDED])
+def test_the_inert_particles_that_pad_a_run_change_no_bit(scene, name, kw, monkeypatch):
+    """The run pads its particles to a multiple of 8 with zero-mass copies of the last one: they add
+    exact zeros to the grid, so the real particles' results are bit for bit those of the run without
+    them (breakdown, saved history, regions, end time)."""
+    padded = _traced_anew(scene, jm.INTERPOLATORS[name](), **kw)
+    assert scene.body().n % 8 and padded.state.x.shape[0] == scene.body().n
+    _unpadded(monkeypatch)
+    plain = _traced_anew(scene, jm.INTERPOLATORS[name](), **kw)
+    assert _bits(padded) == _bits(plain)
+    if name == "cpgimp":
+        assert [int(padded.state.status), int(padded.state.fail_particle)] == [jm.status.STENCIL, 30]
+
+
+@pytest.mark.slow
+def test_the_inert_particles_change_no_bit_of_a_derivative(monkeypatch):
+    def f(beta):
+        scene = jm.GasExpansion(cells=7, pad=4, ppc=1, beta=beta)  # 7 particles, padded to 8
+        return _traced_anew(scene, jm.CPDI(), dt=1e-6, steps=10, artificial_cells=1).state.x.sum()
+
+    padded = [jax.grad(f)(200.0), jax.jacfwd(f)(200.0)]
+    _unpadded(monkeypatch)
+    plain = [jax.grad(f)(200.0), jax.jacfwd(f)(200.0)]
+    assert padded[0] != 0.0
+    assert [float(g).hex() for g in padded] == [float(g).hex() for g in plain]
