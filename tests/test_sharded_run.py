@@ -75,20 +75,25 @@ SCRIPT = textwrap.dedent(
     g = lambda dt, devices: jm.simulate(slab, jm.CPDI(), dt=dt, steps=20, devices=devices).state.x[-1, 0]
     r["grad_dt"] = [float(jax.grad(g)(5e-6, None)), float(jax.grad(g)(5e-6, 4))]
     # a chunked run on 4 devices, saved mid-way and resumed: bit for bit
-    kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=4)
-    full = long_run.run(slab, jm.MPQ(), **kw)
-    path = pathlib.Path(tempfile.mkdtemp()) / "run.npz"
-    long_run.run(slab, jm.MPQ(), out=path, checkpoint_every=2, **(kw | dict(steps=14)))
-    _, meta = long_run.load(path)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
-    meta["steps"] = 30
-    arrays["meta"] = np.asarray(json.dumps(meta))
-    np.savez(path, **arrays)
-    res = long_run.resume(path, progress=False)
-    r["resume"] = dict(saved_devices=meta["devices"], identical=all(
-        np.array_equal(np.asarray(getattr(res.state, k)), np.asarray(getattr(full.state, k)))
-        for k in ("x", "v", "F", "sigma", "corners")))
+    def chunked_and_resumed(scene):  # MPQ's whole run, the run saved at step 14 and resumed, its meta
+        kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=4)
+        full = long_run.run(scene, jm.MPQ(), **kw)
+        path = pathlib.Path(tempfile.mkdtemp()) / "run.npz"
+        long_run.run(scene, jm.MPQ(), out=path, checkpoint_every=2, **(kw | dict(steps=14)))
+        _, meta = long_run.load(path)
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta["steps"] = 30
+        arrays["meta"] = np.asarray(json.dumps(meta))
+        np.savez(path, **arrays)
+        return full, long_run.resume(path, progress=False), meta
+
+    def identical(a, b):
+        return all(np.array_equal(np.asarray(getattr(a.state, k)), np.asarray(getattr(b.state, k)))
+                   for k in ("x", "v", "F", "sigma", "corners"))
+
+    full, res, meta = chunked_and_resumed(slab)
+    r["resume"] = dict(saved_devices=meta["devices"], identical=identical(res, full))
     one = jm.simulate(slab, jm.MPQ(), dt=5e-6, steps=30, devices=4)
     r["resume"]["as_simulate"] = diff(one, full)
     # particles that the devices do not divide: padded with inert copies of the last one
@@ -137,20 +142,8 @@ SCRIPT = textwrap.dedent(
     loop = [line.split(" while(")[0] for line in text.splitlines()  # the time loop's carry
             if " while(" in line and 'op_name="jit(run_scan)/while"' in line]
     u["share"] = [len(loop), "f64[8,1,1]" in loop[0], "f64[32,1,1]" in loop[0] or "f64[31,1,1]" in loop[0]]
-    kw = dict(dt=5e-6, steps=30, chunk=4, progress=False, devices=4)
-    full = long_run.run(odd, jm.MPQ(), **kw)
-    path = pathlib.Path(tempfile.mkdtemp()) / "odd.npz"
-    long_run.run(odd, jm.MPQ(), out=path, checkpoint_every=2, **(kw | dict(steps=14)))
-    _, meta = long_run.load(path)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
-    meta["steps"] = 30
-    arrays["meta"] = np.asarray(json.dumps(meta))
-    np.savez(path, **arrays)
-    res = long_run.resume(path, progress=False)
-    u["resume"] = dict(identical=all(
-        np.array_equal(np.asarray(getattr(res.state, k)), np.asarray(getattr(full.state, k)))
-        for k in ("x", "v", "F", "sigma", "corners")),
+    full, res, _ = chunked_and_resumed(odd)
+    u["resume"] = dict(identical=identical(res, full),
         as_simulate=diff(jm.simulate(odd, jm.MPQ(), dt=5e-6, steps=30, devices=4), full),
         one_device=diff(jm.simulate(odd, jm.MPQ(), dt=5e-6, steps=30), full))
     # refused: a breakdown raised from inside jax.jit or jax.vmap (the device that found it stopped
