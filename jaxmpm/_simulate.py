@@ -416,10 +416,7 @@ def run_scan(
         The ``Solution``, its status recording any failure (nothing is raised).
     """
     s = setup(model)
-    n_particles = s.body.X.shape[0]
-    if model.devices is not None:
-        s = eqx.tree_at(lambda z: z.body, s, shard_particles(model, s.body, n_particles))
-    state0 = shard_particles(model, start_state(model, s), n_particles)
+    state0 = start_state(model, s)  # (advance lays the particles out over model.devices)
     state, saved = advance(model, s, state0, dt, steps, saveat, checkpoint)
     if isinstance(dt, ToEnd):
         state = finish_to_end(state, dt)
