@@ -265,8 +265,11 @@ class Murnaghan(AbstractStatelessEOS):
 
 
 # The CJ search: D^2 on the products' Hugoniot, scanned on a grid of J, then a bracketed Newton step
-# on d(D^2)/dJ = 0 from the grid's minimum.
+# on d(D^2)/dJ = 0 from the grid's minimum. The grid: _SCAN even points over (0, 1), then _NEAR
+# points whose 1 - J falls geometrically from the last one's 1e-3 to 1e-6, for weak detonations
+# (a gamma-law gas's 1 - J_CJ is about 0.6 sqrt(q) / c0 for a heat release q << c0^2).
 _SCAN = 500
+_NEAR = 60
 _NEWTON = 40
 
 
@@ -299,13 +302,17 @@ def _stop(tree):
 def _cj_solve(products, rho0, e0, p0):
     dtype = rho0.dtype
     sp, sr, se, sq = _stop((products, rho0, e0, p0))
-    grid = jnp.linspace(0.5 / _SCAN, 1.0 - 0.5 / _SCAN, _SCAN, dtype=dtype)
+    near = 1.0 - np.logspace(np.log10(0.5 / _SCAN), -6.0, _NEAR + 1)[1:]
+    grid = jnp.concatenate(
+        [jnp.linspace(0.5 / _SCAN, 1.0 - 0.5 / _SCAN, _SCAN, dtype=dtype), jnp.asarray(near, dtype)]
+    )
+    last = grid.shape[0] - 1
     d2, _, _, denom = jax.vmap(lambda J: _hugoniot(sp, sr, se, sq, J))(grid)
     valid = (denom > 0) & (d2 > 0) & jnp.isfinite(d2)
     d2 = jnp.where(valid, d2, jnp.inf)
     i = jnp.argmin(d2)
-    found = (i > 0) & (i < _SCAN - 1) & valid[i]
-    lo, hi = grid[jnp.maximum(i - 1, 0)], grid[jnp.minimum(i + 1, _SCAN - 1)]
+    found = (i > 0) & (i < last) & valid[i]
+    lo, hi = grid[jnp.maximum(i - 1, 0)], grid[jnp.minimum(i + 1, last)]
 
     def newton(_, carry):
         lo, hi, J = carry
@@ -370,7 +377,8 @@ def cj_state(products: AbstractEOS, rho0, e0=0.0, p0=0.0) -> dict[str, Float[Arr
     the pressure is explicit, ``e_H = (e0 + (a + p0) dv / 2) / (1 - b dv / 2)`` with ``dv = 1 / rho0 -
     1 / rho`` and ``p = a + b e``, and the Rayleigh line gives ``D^2 = (p - p0) / (rho0 (1 - J))``, ``J
     = rho0 / rho``. The CJ point is the minimum of ``D^2`` over ``J`` in ``(0, 1)`` (the Rayleigh line
-    tangent to the Hugoniot): found by a scan of 500 points, then a bracketed Newton iteration on
+    tangent to the Hugoniot): found by a scan of 500 even points, and 60 more with ``1 - J`` from
+    ``1e-3`` down to ``1e-6`` for weak detonations, then a bracketed Newton iteration on
     ``d(D^2)/dJ = 0``; one more Newton step on the converged root held constant makes every output
     differentiable (exact first derivatives) with respect to the EOS's fields, ``rho0``, ``e0`` and
     ``p0``. ``u_CJ = D (1 - J_CJ)`` and ``c_CJ = D - u_CJ`` (the CJ condition; it equals
@@ -392,7 +400,9 @@ def cj_state(products: AbstractEOS, rho0, e0=0.0, p0=0.0) -> dict[str, Float[Arr
     Returns:
         A dict of 0-d arrays with keys ``D`` (detonation speed), ``P_CJ``, ``J_CJ`` (``rho0 / rho_CJ``),
         ``u_CJ`` (particle speed), ``c_CJ`` (sound speed), ``rho_CJ`` and ``e_CJ`` (specific energy).
-        Every value is NaN where the scan finds no interior minimum.
+        Every value is NaN where the scan finds no interior minimum (no detonation, or one so weak
+        that ``1 - J_CJ`` is under ``1e-6``: a gamma-law gas's heat release under about
+        ``3e-12 c0^2``). The state is as precise as ``eps / (1 - J_CJ)``, relative.
 
     Raises:
         ValueError: ``products`` is not an ``AbstractEOS`` without internal variables; ``rho0``, ``e0``

@@ -118,6 +118,34 @@ def test_ideal_gas_cj_is_the_gamma_law_closed_form():
         np.testing.assert_allclose(float(cj["J_CJ"]), gamma / (gamma + 1.0), rtol=1e-10)
 
 
+@pytest.mark.parametrize("q", [1e-1, 1e-3, 1e-5, 1e-6, 1e-8, 1e-10])
+def test_cj_of_a_weak_detonation_with_ambient_pressure_is_the_closed_form(q):
+    """A gamma-law gas detonating from ``(rho0, p0)`` with heat release ``q`` (per unit mass, here in
+    units of ``c0^2``): ``D = sqrt(H + c0^2) + sqrt(H)``, ``H = (gamma^2 - 1) q / 2``, and ``J_CJ =
+    (gamma + c0^2 / D^2) / (gamma + 1)``. The weakest (``q = 1e-6 c0^2`` and below) have ``1 - J_CJ``
+    under 1e-3, closer to 1 than the scan's even grid reaches. ``D^2`` divides by ``1 - J``, so the
+    state is as precise as ``eps / (1 - J_CJ)`` (measured: within it at every ``q`` here)."""
+    gamma, rho0, p0 = 1.4, 1.0, 1.0
+    c0sq = gamma * p0 / rho0
+    q = q * c0sq
+    H = (gamma**2 - 1.0) * q / 2.0
+    D = np.sqrt(H + c0sq) + np.sqrt(H)
+    J = (gamma + c0sq / D**2) / (gamma + 1.0)
+    cj = ex.cj_state(jm.IdealGas(gamma), rho0, q + p0 / ((gamma - 1.0) * rho0), p0)
+    rtol = 2.0 * np.finfo(float).eps / (1.0 - J)
+    np.testing.assert_allclose(float(cj["D"]), D, rtol=rtol)
+    np.testing.assert_allclose(float(cj["J_CJ"]), J, rtol=rtol)
+    np.testing.assert_allclose(float(cj["P_CJ"]), p0 + rho0 * D**2 * (1.0 - J), rtol=rtol)
+
+
+def test_no_heat_release_has_no_cj_state():
+    """Without heat release the Hugoniot is the shock adiabat through the initial state, and ``D^2``
+    falls toward the sound speed as ``J -> 1``: a sound wave, no CJ point (NaN)."""
+    gamma, rho0, p0 = 1.4, 1.0, 1.0
+    cj = ex.cj_state(jm.IdealGas(gamma), rho0, p0 / ((gamma - 1.0) * rho0), p0)
+    assert all(np.isnan(float(v)) for v in cj.values())
+
+
 def test_cj_with_ambient_pressure_stays_on_hugoniot_and_rayleigh_line():
     eos, e0 = _tnt()
     p0 = 1e8
