@@ -9,7 +9,7 @@ from helpers import usage
 
 import jaxmpm as jm
 from jaxmpm.cli import main
-from jaxmpm.scenes.gurney import gurney_sandwich
+from jaxmpm.scenes.gurney import gurney_cylinder, gurney_sandwich
 
 
 def test_gurney_formula_for_comp_b_on_steel():
@@ -21,6 +21,20 @@ def test_gurney_formula_for_comp_b_on_steel():
     assert float(scene.mass_ratio) == pytest.approx(7810.0 * 0.01 / (1717.0 * 0.04), rel=1e-14)  # 1.137
     assert float(scene.charge) == pytest.approx(0.04, rel=1e-15) and float(scene.plate) == pytest.approx(0.01)
     assert scene.layout().counts == (320, 80)  # 2 particles per cell
+
+
+def test_gurney_formulas_at_their_exact_values():
+    """Open-faced sandwich: at M/C = 1, ``(28 / 12 + 1)^(-1/2) = sqrt(3/10)``; with no plate, ``(2 / 6)^(-1/2)
+    = sqrt(3)``. Cylinder: ``(1 + 1/2)^(-1/2) = sqrt(2/3)`` and ``(1/2)^(-1/2) = sqrt(2)``. Per unit
+    Gurney velocity, to round-off."""
+    for f, r, exact in (
+        (gurney_sandwich, 1.0, np.sqrt(0.3)),
+        (gurney_sandwich, 0.0, np.sqrt(3.0)),
+        (gurney_cylinder, 1.0, np.sqrt(2.0 / 3.0)),
+        (gurney_cylinder, 0.0, np.sqrt(2.0)),
+    ):
+        assert float(f(1.0, r)) == pytest.approx(exact, rel=4e-16), (f.__name__, r)
+    assert float(gurney_sandwich(2700.0, 1.0)) == pytest.approx(2700.0 * np.sqrt(0.3), rel=4e-16)
 
 
 @pytest.mark.slow
