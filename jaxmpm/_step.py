@@ -461,7 +461,9 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
     momentum or force (it adds exact zeros to the grid's sums, so the real particles' results are
     bit for bit those of the run without it), and it moves and deforms exactly as the particle it
     copies, so it fails no check before that one (a failure names the lowest index, a real
-    particle's). The drivers pad before the time loop and drop the copies after it
+    particle's). Its stress, energy and internal variables are then its material's for that motion,
+    or zero in a body of several regions, whose materials update their own particles only; both
+    pass every check. The drivers pad before the time loop and drop the copies after it
     (``unpad_particles``); ``step`` takes the particles as they are.
 
     Args:
