@@ -458,13 +458,16 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
 
     Each added particle is a copy of the last one (position, domain, corners, deformation, stress,
     velocity, energy, internal variables) with zero mass and zero volume: it gives the grid no mass,
-    momentum or force (it adds exact zeros to the grid's sums, so the real particles' results are
-    bit for bit those of the run without it), and it moves and deforms exactly as the particle it
-    copies, so it fails no check before that one (a failure names the lowest index, a real
-    particle's). Its stress, energy and internal variables are then its material's for that motion,
+    momentum or force (it adds exact zeros to the grid's sums, so with fixed steps the real
+    particles' results are bit for bit those of the run without it; with CFL steps XLA may round
+    the padded program's step otherwise, by an ulp), and it moves and deforms exactly as the
+    particle it copies, so it fails no check before that one (a failure names the lowest index, a
+    real particle's). Its stress, energy and internal variables are then its material's for that motion,
     or zero in a body of several regions, whose materials update their own particles only; both
     pass every check. The drivers pad before the time loop and drop the copies after it
-    (``unpad_particles``); ``step`` takes the particles as they are.
+    (``unpad_particles``); ``step`` takes the particles as they are. The padded body records the
+    copies (``Body.inert``): its 1D corners are no chain, and the CFL step leaves them out of its
+    maximum.
 
     Args:
         model: the run (``model.devices``).
@@ -495,6 +498,7 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
         corner_ids=copies(b.corner_ids),
         boundary=copies(b.boundary),
         region=None if b.region is None else copies(b.region),
+        inert=b.inert + extra,
     )
     fields = {name: jax.tree.map(copies, getattr(state, name)) for name in _PARTICLE_FIELDS}
     return eqx.tree_at(lambda z: z.body, setup, body), dataclasses.replace(state, **fields)
@@ -1030,8 +1034,13 @@ def stable_dt(model: Model, setup: Setup, state: State, cfl: Float[Array, ""]) -
         The time step.
     """
     c = _sound_speed(model, setup, state)
-    speed = jnp.max(c + _speed(state.v))
-    return cfl * setup.grid.h / speed
+    speed = c + _speed(state.v)
+    inert = setup.body.inert
+    if inert:  # the copies that pad the run tie with the particle they copy: left out of the max,
+        # they take no share of its derivative (as the run without them)
+        real = jnp.arange(speed.shape[0]) < speed.shape[0] - inert
+        speed = jnp.where(real, speed, -jnp.inf)
+    return cfl * setup.grid.h / jnp.max(speed)
 
 
 def step(

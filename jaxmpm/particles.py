@@ -27,6 +27,8 @@ class Body(eqx.Module):
             axis, ``(n,)``.
         region: the region of each particle (``jaxmpm.regions``), ``(n,)``; ``None`` for a body of
             one region.
+        inert: how many of the particles, the last ones, are inert copies that pad the run
+            (``jaxmpm._step.pad_particles``; static): 0 for a body as seeded.
     """
 
     X: Float[Array, "n dim"]
@@ -37,6 +39,7 @@ class Body(eqx.Module):
     corner_ids: Int[Array, "n corners"]
     boundary: Bool[Array, " n"]
     region: Int[Array, " n"] | None = None
+    inert: int = eqx.field(static=True, default=0)
 
     @property
     def n(self) -> int:
@@ -46,8 +49,10 @@ class Body(eqx.Module):
     def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n corners dim"]:
         """Each particle's ``2^dim`` corners, ``corners[corner_ids]``.
 
-        A 1D body is a chain (``seed_bar``: particle ``p`` has corners ``p`` and ``p + 1``), read as
-        two shifted slices rather than a gather, which the step does several times a step.
+        A 1D body of one piece is a chain (``seed_bar``: particle ``p`` has corners ``p`` and
+        ``p + 1``, ``n + 1`` corners), read as two shifted slices rather than a gather, which the step
+        does several times a step. A body of several pieces (``n + pieces`` corners), or one padded
+        with inert copies, is gathered.
 
         Args:
             corners: the body's corners, one row per corner of ``X_corners``.
@@ -55,7 +60,7 @@ class Body(eqx.Module):
         Returns:
             The corners of each particle, in the order of ``_util.corner_signs``.
         """
-        if self.X.shape[1] == 1 and corners.shape[0] == self.n + 1:
+        if self.X.shape[1] == 1 and self.inert == 0 and corners.shape[0] == self.n + 1:
             return jnp.stack([corners[:-1], corners[1:]], axis=1)
         return corners[self.corner_ids]
 
