@@ -13,6 +13,7 @@ to replace one unless ``--overwrite``.
 from __future__ import annotations
 
 import importlib.util
+import json
 import pathlib
 import subprocess
 import sys
@@ -234,6 +235,27 @@ def test_state_hashes_compare_is_read_first(tmp_path):
         module.main(["--out", "after.json", "--compare", "before.json"])
     (tmp_path / "bad.json").write_text("not json")
     assert _exit_code(module, ["--out", "after.json", "--compare", "bad.json"]) == 2
+
+
+def test_state_hashes_compare_fails_on_a_changed_or_missing_run_and_lists_new_ones(monkeypatch, capsys):
+    """A run whose hash changed, or one of the earlier file not run here, fails the comparison; a run
+    the earlier file lacks (added to the matrix since) is listed as new and does not."""
+    import numpy as np
+
+    module = _load(ROOT / "experiments" / "state_hashes.py")
+    runs = {"same": 1.0, "changed": 2.0, "added": 3.0}
+    fake = lambda: ((k, lambda v=v: (np.array([v]), 0)) for k, v in runs.items())
+    monkeypatch.setattr(module, "_runs", fake)
+    monkeypatch.setattr(jax, "clear_caches", lambda: None)  # the worker's compiled programs stay
+    same = module._hash(np.array([1.0]))
+    pathlib.Path("before.json").write_text(json.dumps({"same": same, "changed": "0" * 16, "gone": "0" * 16}))
+    assert module.main(["--out", "a.json", "--compare", "before.json"]) == 1
+    out = capsys.readouterr().out
+    assert "3 runs, 1 differ from before.json, 1 missing, 1 new (not in it, not compared)" in out
+    assert "  differs: changed\n" in out and "  not run here: gone\n" in out and "  new: added\n" in out
+    pathlib.Path("older.json").write_text(json.dumps({"same": same}))
+    assert module.main(["--out", "b.json", "--compare", "older.json"]) == 0
+    assert "3 runs, 0 differ from older.json, 2 new (not in it, not compared)" in capsys.readouterr().out
 
 
 # A script that writes files: its command line, with OUT for a folder, and a file of that folder it
