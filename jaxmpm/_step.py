@@ -462,9 +462,9 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
     particles' results are bit for bit those of the run without it; with CFL steps XLA may round
     the padded program's step otherwise, by an ulp), and it moves and deforms exactly as the
     particle it copies, so it fails no check before that one (a failure names the lowest index, a
-    real particle's). Its stress, energy and internal variables are then its material's for that motion,
-    or zero in a body of several regions, whose materials update their own particles only; both
-    pass every check. The drivers pad before the time loop and drop the copies after it
+    real particle's). Its stress, energy and internal variables are then its material's for that
+    motion, or zero in a body of several regions, whose materials update their own particles only;
+    both pass every check. The drivers pad before the time loop and drop the copies after it
     (``unpad_particles``); ``step`` takes the particles as they are. The padded body records the
     copies (``Body.inert``): its 1D corners are no chain, and the CFL step leaves them out of its
     maximum.
