@@ -334,7 +334,7 @@ def test_the_inert_particles_that_pad_a_run_change_no_bit(scene, name, kw, monke
 
 @pytest.mark.slow
 @pytest.mark.parametrize("to_end", [False, True], ids=["fixed-dt", "to-an-end-time"])
-def test_the_inert_particles_change_no_bit_of_a_derivative(monkeypatch, to_end):
+def test_the_inert_particles_change_a_derivative_by_round_off_at_most(monkeypatch, to_end):
     """Bit for bit with fixed steps. Through the CFL step of a run to an end time, where the copies
     would tie with the particle they copy for the fastest wave (the gas expansion's last one), the
     derivative of the maximum goes to the real particles alone, and the reverse-mode derivative
