@@ -489,12 +489,12 @@ def pad_particles(model: Model, setup: Setup, state: State) -> tuple[Setup, Stat
         return jnp.concatenate([a, jnp.zeros((extra,) + a.shape[1:], a.dtype)])
 
     b = setup.body
-    body = Body(
+    body = dataclasses.replace(  # the corners (X_corners) stay: the copies share the last one's
+        b,
         X=copies(b.X),
         r0=copies(b.r0),
         m=zeros(b.m),
         V0=zeros(b.V0),
-        X_corners=b.X_corners,
         corner_ids=copies(b.corner_ids),
         boundary=copies(b.boundary),
         region=None if b.region is None else copies(b.region),
