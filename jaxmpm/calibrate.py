@@ -36,7 +36,9 @@ starts run at once under ``vmap``; the lowest final loss wins.
 ``C = sigma^2 (J^T J)^-1`` with ``sigma^2 = sum r^2 / (n - p)`` (or the measurement noise, ``noise``),
 in the fit's variables and in the physical ones (``C_phys = D C D``, ``D = diag(p - p_off)``); each
 parameter's standard error ``sqrt(C_ii)``, the correlation matrix, and the condition number of
-``J^T J`` in relative variables (``d r / d ln p``: units drop out).
+``J^T J`` in relative variables (``d r / d ln p``: units drop out). Where ``J^T J`` is singular, a
+constant whose unit vector is orthogonal to its null space is still determined: its standard error
+comes from the pseudo-inverse, on ``n - rank`` degrees of freedom; the others' are infinite.
 
 **Identifiability.** When the data do not separate the parameters (a correlation beyond
 ``max_correlation``, 0.99, or a relative standard error above ``max_relative_std``, 10%), the fit still
@@ -239,7 +241,8 @@ class Fit:
         correlation: the correlation matrix, ``(p, p)`` (NaN where undefined: a constant whose
             standard error is infinite, which ``warning`` names).
         condition: the condition number of ``J^T J`` in relative variables (``d r / d ln p``).
-        sigma: the noise level used: ``noise`` when given, else ``sqrt(sum r^2 / (n - p))``.
+        sigma: the noise level used: ``noise`` when given, else ``sqrt(sum r^2 / (n - rank))``
+            (``rank = p`` unless ``J^T J`` is singular).
         noise_given: whether ``sigma`` is the given noise.
         weakest: the direction the data see least, a unit vector in ``d ln p`` (name to component).
         warning: ``None``, or why the answer should not be trusted as it stands (identifiability, no
@@ -1419,16 +1422,19 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
         fitted: name to the fitted value.
         r: residuals ``x_model - x_data``, ``(n,)``.
         J_theta: ``d r / d theta``, ``(n, p)``, ``theta = ln(p - p_off)``.
-        noise: the measurement noise; ``None``: ``sigma^2 = sum r^2 / (n - p)``.
+        noise: the measurement noise; ``None``: ``sigma^2 = sum r^2 / (n - rank)`` (``rank = p``
+            unless ``J^T J`` is singular).
         offs: name to ``p_off`` (default: ``offsets(scene, names)``).
 
     Returns:
         A dict: ``std`` (name to the standard error), ``covariance``, ``covariance_theta``,
         ``correlation``, ``condition``, ``sigma``, ``weakest`` (name to the component of the weakest
         direction in ``d ln p``), ``strongest`` (the best-determined one), ``relative_std`` (name to
-        ``std / |value|``). Standard errors are ``inf`` where ``J^T J`` is singular, NaN when the
-        noise cannot be estimated (``n <= p`` and no ``noise``); the correlations are then undefined,
-        NaN (``identifiability`` says why in words).
+        ``std / |value|``). Where ``J^T J`` is singular, the standard error of a constant the data
+        do not determine (its unit vector not orthogonal to the null space) is ``inf`` and its
+        correlations NaN, while a determined one's comes from the pseudo-inverse; all are NaN when
+        the noise cannot be estimated (``n <= rank`` and no ``noise``; ``identifiability`` says why
+        in words).
 
     Raises:
         ValueError: ``names`` empty or not a sequence of names, ``r`` or ``J_theta`` not finite or
@@ -1460,28 +1466,33 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
     for k, v, d in zip(names, value, D):
         if not (np.isfinite(v) and d > 0):
             raise ValueError(f"fitted[{k!r}] must be finite and > {offs[k]:g} (its bound), got {float(v)!r}")
-    if noise is not None:
-        sigma = float(noise)
-    elif n > p:
-        sigma = float(np.sqrt(r @ r / (n - p)))
-    else:
-        sigma = float("nan")
     A = Jt.T @ Jt
     J_rel = Jt * (value / D)  # d r / d ln p
     w, V = np.linalg.eigh(J_rel.T @ J_rel)
     condition = float(w[-1] / w[0]) if w[0] > 0 else float("inf")
-    if w[0] > 1e-14 * max(w[-1], 1e-300):
-        C_theta = sigma**2 * np.linalg.inv(A)
+    regular = w[0] > 1e-14 * max(w[-1], 1e-300)
+    if regular:
+        A_inv, rank = np.linalg.inv(A), p
     else:
-        C_theta = np.full((p, p), np.inf)
+        A_inv, rank = _inverse_where_determined(Jt)
+    if noise is not None:
+        sigma = float(noise)
+    elif n > rank:
+        sigma = float(np.sqrt(r @ r / (n - rank)))
+    else:
+        sigma = float("nan")
+    with np.errstate(invalid="ignore"):  # inf * 0 where sigma = 0 and a constant is not determined
+        C_theta = sigma**2 * A_inv
+    if not regular:
+        C_theta[np.diag_indices(p)] = np.where(np.isinf(np.diag(A_inv)), np.inf, np.diag(C_theta))
     C_phys = C_theta * np.outer(D, D)
     std = np.sqrt(np.abs(np.diag(C_phys)))
     with np.errstate(invalid="ignore", divide="ignore"):
         s_theta = np.sqrt(np.diag(C_theta))
         corr = C_theta / np.outer(s_theta, s_theta)
-        if np.all(np.isfinite(C_theta)) and not np.all(np.isfinite(corr)):
-            # sigma = 0 (residuals exactly zero): the correlation does not depend on sigma
-            A_inv = np.linalg.inv(A)
+        if not np.all(np.isfinite(corr)):
+            # sigma = 0 (residuals exactly zero), or a constant not determined: the correlation does
+            # not depend on sigma (NaN where a constant is not determined)
             s_unit = np.sqrt(np.diag(A_inv))
             corr = A_inv / np.outer(s_unit, s_unit)
     weakest, strongest = V[:, 0], V[:, -1]
@@ -1499,6 +1510,35 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
         strongest={k: float(c) for k, c in zip(names, strongest)},
         eigenvalues=w,
     )
+
+
+def _inverse_where_determined(J) -> tuple[np.ndarray, int]:
+    """``(J^T J)^-1`` where the data determine it, for a singular ``J^T J``.
+
+    From the singular value decomposition of ``J`` with its columns scaled to unit length. A
+    constant is determined when its unit vector is orthogonal to the null space (the right singular
+    vectors whose squared singular values are at most ``1e-14`` of the largest): its component along
+    them is at most ``1e-6``. Its variance, and the covariance of two determined constants, are then
+    those of any generalised inverse; this is the pseudo-inverse's.
+
+    Args:
+        J: ``(n, p)``.
+
+    Returns:
+        ``(P, rank)``: the pseudo-inverse of ``J^T J`` with ``inf`` on the diagonal and NaN off it for
+        the constants the data do not determine, and the rank of ``J``.
+    """
+    s = np.linalg.norm(J, axis=0)
+    seen = s > 0
+    s = np.where(seen, s, 1.0)
+    _, S, Vt = np.linalg.svd(J / s, full_matrices=False)
+    S = np.concatenate([S, np.zeros(Vt.shape[0] - S.size)])
+    keep = S**2 > 1e-14 * max(S[0] ** 2, 1e-300)
+    determined = seen & (np.linalg.norm(Vt[~keep], axis=0) <= 1e-6)
+    P = (Vt[keep].T / S[keep] ** 2) @ Vt[keep] / np.outer(s, s)
+    P = np.where(np.outer(determined, determined), P, np.nan)
+    P[np.diag_indices_from(P)] = np.where(determined, np.diag(P), np.inf)
+    return P, int(keep.sum())
 
 
 def _and(names) -> str:
@@ -1653,12 +1693,16 @@ class Information:
             noise: the noise level (``None``: the plan's).
 
         Returns:
-            Name to the expected standard error (``inf`` when the plan cannot determine it).
+            Name to the expected standard error (``inf`` for a constant the plan cannot determine:
+            where the information is singular, one whose unit vector is not orthogonal to its null
+            space).
         """
         info = self.fisher(t_end, samples, noise)
         w = np.linalg.eigvalsh(info)
         if not w[0] > 1e-14 * max(w[-1], 1e-300):
-            return {k: float("inf") for k in self.names}
+            s = self.noise if noise is None else float(noise)
+            P, _ = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)] / s)
+            return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(P)))}
         return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(np.linalg.inv(info))))}
 
     def correlation(self, t_end: float | None = None, samples: int | None = None) -> np.ndarray:

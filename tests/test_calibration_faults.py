@@ -342,6 +342,33 @@ def test_identifiability_names_the_constant_whose_standard_error_is_infinite():
     assert "the correlations of gamma and P0 are undefined" in text
 
 
+def test_a_singular_fit_gives_the_determined_constant_its_standard_error():
+    """P0 and p_atm enter only through one combination (equal columns of d r / d theta): J^T J is
+    singular, but gamma's unit vector is orthogonal to its null space, so the data determine gamma,
+    with the standard error of the model reduced to (gamma, that combination), on n - 2 degrees of
+    freedom."""
+    sc = jm.GasSlab(**SLAB)
+    rng = np.random.default_rng(3)
+    a, b = rng.standard_normal(12), rng.standard_normal(12)
+    J = np.stack([a, b, b], axis=1)
+    r = 0.1 * rng.standard_normal(12)
+    names = ("gamma", "P0", "p_atm")
+    fitted = {"gamma": 1.4, "P0": 3e5, "p_atm": 1e5}
+    u = cal.uncertainty(sc, names, fitted, r, J_theta=J)
+    Jr = np.stack([a, b], axis=1)  # the reduced model: theta_gamma and theta_P0 + theta_p_atm
+    sigma = np.sqrt(r @ r / (12 - 2))
+    var = sigma**2 * np.linalg.inv(Jr.T @ Jr)[0, 0]
+    assert u["sigma"] == pytest.approx(sigma, rel=1e-13)
+    assert u["std"]["gamma"] == pytest.approx((1.4 - 1.0) * np.sqrt(var), rel=1e-9)
+    assert u["covariance_theta"][0, 0] == pytest.approx(var, rel=1e-9)
+    assert np.isinf(u["std"]["P0"]) and np.isinf(u["std"]["p_atm"])
+    corr = np.asarray(u["correlation"])
+    assert corr[0, 0] == pytest.approx(1.0, rel=1e-12)
+    assert np.isnan(corr[0, 1:]).all() and np.isnan(corr[1:, :]).all()
+    text = cal.identifiability(sc, u, TS[:12])
+    assert "the standard errors of P0 and p_atm are infinite" in text
+
+
 def test_zero_residuals_give_a_correlation_not_nan():
     """With residuals exactly zero (sigma = 0) the standard errors are zero and the correlation, which
     does not depend on sigma, is still defined."""
@@ -365,6 +392,24 @@ def test_information_correlation_of_a_plan_that_determines_nothing_is_refused():
     assert all(np.isinf(v) for v in info.std().values())
     with pytest.raises(ValueError, match="this plan does not determine P0 and p_atm: the Fisher information"):
         info.correlation()
+
+
+def test_a_singular_plan_gives_the_determined_constant_its_standard_error():
+    """P0 and p_atm enter a plan through one combination (proportional columns): gamma is still
+    determined, with the Cramer-Rao bound of the plan reduced to gamma and that combination."""
+    rng = np.random.default_rng(4)
+    a, b = rng.standard_normal(10), rng.standard_normal(10)
+    info = cal.Information(
+        names=("gamma", "P0", "p_atm"),
+        values={"gamma": 1.4, "P0": 3e5, "p_atm": 1e5},
+        ts=np.linspace(0.0, 1e-3, 10),
+        jacobian=np.stack([a, b, 3.0 * b], axis=1),
+        noise=0.01,
+    )
+    std = info.std()
+    Jr = np.stack([a, b], axis=1)
+    assert std["gamma"] == pytest.approx(0.01 * np.sqrt(np.linalg.inv(Jr.T @ Jr)[0, 0]), rel=1e-9)
+    assert np.isinf(std["P0"]) and np.isinf(std["p_atm"])
 
 
 def test_a_plan_refuses_a_window_before_its_first_time():
