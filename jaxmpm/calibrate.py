@@ -29,8 +29,10 @@ edge: no minimum inside the range), the fit ends at the edge and ``Fit.warning``
 point; a trial whose run breaks down (or whose loss is higher) is rejected, the damping raised and the
 step shortened: a broken run's loss is never used (``Fit.rejected`` lists every rejected trial).
 ``"lbfgs"`` (``optax.lbfgs`` with its zoom line search, gradients in reverse mode) and ``"adam"``
-are the other methods; a broken trial gives them a NaN loss, which the line search refuses. Several
-starts run at once under ``vmap``; the lowest final loss wins.
+are the other methods. A broken trial gives L-BFGS a NaN loss, which its line search refuses; Adam,
+which has no line search, refuses a step whose point breaks down and takes the step from the point
+before again, half as long (up to 20 times, after which the start stops). Several starts run at once
+under ``vmap``; the lowest final loss wins.
 
 **Uncertainty at the optimum.** From ``J`` at the best point: the Gauss-Newton covariance
 ``C = sigma^2 (J^T J)^-1`` with ``sigma^2 = sum r^2 / (n - p)`` (or the measurement noise, ``noise``),
@@ -224,9 +226,11 @@ class Fit:
     Attributes:
         fitted: the best start's fitted values, name to float.
         loss: its final loss, ``mean((r / L)^2)``.
-        iterations: iterations taken.
-        history: loss per iteration and start, shape ``(iterations + 1, starts)`` (NaN for a start
-            that broke down).
+        iterations: iterations the best start took.
+        history: loss per iteration and start, from the starts' own loss, shape ``(1 + k, starts)``
+            with ``k`` the iterations of the start that took the most (NaN for a start that broke
+            down; after a start's own iterations, its final loss). The best start's history is
+            ``history[: iterations + 1, best_start]``.
         starts_fitted: every start's fitted values, name to array ``(starts,)``; for a start in
             ``failed_starts``, the values where it stopped, which are not a fit.
         wall_s: wall time of the fit (compilation included).
@@ -248,8 +252,9 @@ class Fit:
         warning: ``None``, or why the answer should not be trusted as it stands (identifiability, no
             convergence, a constant the data pull against the bound of its range).
         offsets: name to ``p_off`` of the fit's variables.
-        rejected: every rejected trial point (``"lm"``): start, iteration, values, and whether its run
-            broke down (``broke``, with the reason in ``why`` for the first ones) or raised the loss.
+        rejected: every rejected trial point (``"lm"`` and ``"adam"``): start, iteration, values, and
+            whether its run broke down (``broke``, with the reason in ``why`` for the first ones) or
+            raised the loss (``"lm"`` only).
         residuals: the best start's residuals ``x_model - x_data`` at the data times.
         best_start: the index of the best start (the one ``fitted`` comes from) in ``starts``.
     """
@@ -620,7 +625,8 @@ def calibrate(
         iterations: the most iterations; the fit stops earlier when it converges (``lm``: the loss
             falls below ``tol``, a step would lower it by less than 1e-8 of itself, or a step that
             would lower it by less than 1e-6 of itself does not; the others: no
-            start improved by 1e-9 of its loss in 3 iterations).
+            start improved by 1e-9 of its loss in 3 iterations, none of which, for Adam, went back
+            from a point that broke down).
         learning_rate: Adam's step in ``theta``.
         tol: a loss below which a start has converged.
         noise: the measurement noise (a standard deviation, in the units of ``x_data``); ``None``:
@@ -792,9 +798,9 @@ def calibrate_each(
         raise CalibrationError(f"calibrate_each: the start's run broke down: {why}")
     fits = []
     for b in range(x_sets.shape[0]):
-        one_run = {k: run[k][b : b + 1] for k in ("theta", "r", "J", "state")}
-        one_run["iterations"] = run["iterations"]
-        one_run["history"] = run["history"][:, b : b + 1]
+        one_run = {k: run[k][b : b + 1] for k in ("theta", "r", "J", "state", "taken")}
+        one_run["iterations"] = int(run["taken"][b])
+        one_run["history"] = run["history"][: one_run["iterations"] + 1, b : b + 1]
         one_run["rejected"] = [dict(r, start=0) for r in run["rejected"] if r["start"] == b]
         one_run["failed"] = {}
         fits.append(
@@ -1015,6 +1021,7 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, wher
     rejected: list[dict] = []
     why_left = 8  # the first broken trials get their reason (a plain run each)
     history = [np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan)]
+    taken = np.zeros(B, dtype=int)  # iterations each start took (a trial step each)
     it = 0
     for it in range(1, iterations + 1):
         where.update(iteration=it, loss=_lowest(history[-1]))
@@ -1035,6 +1042,7 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, wher
         if not active.any():
             it -= 1
             break
+        taken[active] += 1
         delta = np.zeros((B, p))
         for b in np.flatnonzero(active):
             d = np.full(p, max(float(np.max(np.diag(A[b]))), 1e-300))  # Levenberg: isotropic in theta
@@ -1104,7 +1112,15 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, wher
         rejected=rejected,
         history=np.stack(history),
         iterations=it,
+        taken=taken,
     )
+
+
+_HALVINGS = 20
+"""Adam: how many times a step whose point broke down is halved before the start is given up."""
+_SHORTEST = 2.0**-_HALVINGS
+_QUIET = 4
+"""Adam: iterations without a step gone back before the fit may stop for lack of progress."""
 
 
 def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, bar, where=None) -> dict:
@@ -1121,7 +1137,7 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     opt = optax.adam(learning_rate) if method == "adam" else optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss_fn) if method == "lbfgs" else None
 
-    def update(theta, state, start_theta, data):
+    def update(theta, state, start_theta, data, scale):
         # optax's L-BFGS mixes int32 and int64 counters: allow it standard promotion even where a
         # user (or the test suite) runs JAX with strict promotion.
         with jax.numpy_dtype_promotion("standard"):
@@ -1135,9 +1151,10 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
                     grad=grad,
                     value_fn=lambda th: loss_fn(th, start_theta, data),
                 )
-            else:
+            else:  # Adam's step, shortened by a power of 2 (exact) after steps that broke down
                 value, grad = jax.value_and_grad(loss_fn)(theta, start_theta, data)
                 updates, state = opt.update(grad, state, theta)
+                updates = updates * scale
             return optax.apply_updates(theta, updates), state, value
 
     update_all = jax.jit(jax.vmap(update))
@@ -1148,20 +1165,67 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     alive = np.ones(B, dtype=bool)
     failed: dict[int, str] = {}
     frozen: dict[int, np.ndarray] = {}
+    rejected: list[dict] = []
+    why_left = 8  # the first broken trials get their reason (a plain run each)
+    scale = np.ones(B)  # Adam: 2^-k after k steps from the same point broke down
+    last = None  # Adam: the previous iteration's point, state and loss, to go back to
+    last_back = -_QUIET  # the last iteration that went back
     history = []
     it = 0
     for it in range(1, iterations + 1):
         where.update(iteration=it, loss=_lowest(history[-1]) if history else float("nan"))
-        new_theta, new_state, value = computed(update_all, theta, state, run_start, run_data)
+        new_theta, new_state, value = computed(
+            update_all, theta, state, run_start, run_data, jnp.asarray(scale, dtype=dtype)
+        )
         value = np.asarray(value)
         broke = alive & ~(np.isfinite(value) & np.all(np.isfinite(np.asarray(new_theta)), axis=1))
+        back = np.zeros(B, dtype=bool)
+        if method == "adam" and last is not None:
+            # the point this iteration reached broke down: refuse it, and step from the previous one
+            # again, half as far (a broken run's loss is never used)
+            back = broke & (scale > _SHORTEST)
+            broke &= ~back
+            for b in np.flatnonzero(back):
+                values = model.physical(np.asarray(run_start[b]), np.asarray(theta[b]))
+                entry = dict(
+                    start=int(b),
+                    iteration=it - 1,
+                    values=dict(zip(model.names, (float(v) for v in values))),
+                    broke=True,
+                    loss=float("nan"),
+                )
+                if why_left > 0:
+                    entry["why"], entry["failure"] = model.why(values)
+                    why_left -= 1
+                rejected.append(entry)
         for b in np.flatnonzero(broke):  # say why, from a plain run at that start's trial values
             why = model.why(model.physical(np.asarray(run_start[b]), np.asarray(theta[b])))[0]
+            if method == "adam" and last is not None:
+                why += f" (as did every step from the point before it, shortened {_HALVINGS} times)"
             failed[int(b)] = f"iteration {it}: {why}"
             frozen[int(b)] = np.asarray(theta[b])
         alive &= ~broke
         if not alive.any():
             break
+        if method == "adam":
+            if back.any():
+                scale = np.where(back, 0.5 * scale, scale)
+                last_back = it
+                mask = jnp.asarray(back)
+
+                def pick(old, new):
+                    return jnp.where(mask.reshape(mask.shape + (1,) * (new.ndim - 1)), old, new)
+
+                new_theta = pick(last[0], new_theta)
+                new_state = jax.tree_util.tree_map(pick, last[1], new_state)
+                last = (
+                    pick(last[0], theta),
+                    jax.tree_util.tree_map(pick, last[1], state),
+                    np.where(back, last[2], value),
+                )
+                value = last[2]
+            else:
+                last = (theta, state, value)
         # A broken start is frozen (its values kept for the report) and its slot follows a live
         # start, so that no NaN enters the batch (a NaN member would keep L-BFGS's line search,
         # which runs to the slowest member under vmap, going to its bound every iteration).
@@ -1176,7 +1240,9 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
             bar.set_postfix(loss=f"{np.nanmin(value):.3e}")
         live = value[alive]
         if np.all(live < tol) or (  # converged, or no start improved by 1e-9 in 3 iterations
-            len(history) > 3 and np.all(np.abs(history[-4][alive] - live) <= 1e-9 * live)
+            len(history) > 3
+            and it - last_back >= _QUIET
+            and np.all(np.abs(history[-4][alive] - live) <= 1e-9 * live)
         ):
             break
     theta = np.array(theta)
@@ -1185,6 +1251,12 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     # live slots kept their own starts and data; the final point's residuals and Jacobian
     r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
     ok &= alive
+    if method == "adam" and last is not None and np.any(alive & ~ok):
+        # Adam's last step reached a point that breaks down: the fit is the point before it
+        back = alive & ~ok
+        theta = np.where(back[:, None], np.asarray(last[0]), theta)
+        r, J, ok = model.residuals_and_jacobian(theta, start_theta, data)
+        ok &= alive
     final = np.where(ok, _loss(np.where(ok[:, None], r, 0.0), L), np.nan)
     with np.errstate(invalid="ignore"):  # NaN where a start failed
         state = np.where(ok, np.where(final <= tol, "converged", "iterations"), "failed").astype(object)
@@ -1197,9 +1269,10 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
         J=J,
         state=state,
         failed=failed,
-        rejected=[],
+        rejected=rejected,
         history=np.stack(history),
         iterations=it,
+        taken=np.full(B, it),
     )
 
 
@@ -1253,7 +1326,7 @@ def _finish(
         )
     if state[best] in ("iterations", "stalled"):
         why = (
-            f"the fit did not converge in {run['iterations']} iterations"
+            f"the fit did not converge in {int(run['taken'][best])} iterations"
             if state[best] == "iterations"
             else "the fit stalled (no trial step lowered the loss)"
         )
@@ -1266,7 +1339,7 @@ def _finish(
     return Fit(
         fitted=fitted,
         loss=float(final[best]),
-        iterations=int(run["iterations"]),
+        iterations=int(run["taken"][best]),
         history=run["history"],
         starts_fitted={n: phys_all[:, i].copy() for i, n in enumerate(names)},
         wall_s=wall,

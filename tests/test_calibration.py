@@ -126,6 +126,34 @@ def test_adam_keeps_parameters_physical_and_descends(synthetic):
     assert not fit.converged and fit.warning.startswith("the fit did not converge")
 
 
+def test_adam_steps_back_from_a_point_that_breaks_down_and_goes_on():
+    """Adam has no line search: a step that reaches a run that breaks down (here the slab leaving a
+    grid of 48 cells) is refused, and the step from the point before is taken again, half as long.
+    The start goes on, and no broken run's loss enters the history."""
+    slab = dict(p_atm=1.0, rho0=1.0, cells=8, h=1 / 8, pad=48)
+    ts = np.linspace(0.0, 4.0, 41)
+    dt = 0.2 * (1 / 8) / np.sqrt(1.3 * 4.2)
+    x = np.asarray(cal.trajectory(jm.GasSlab(gamma=1.3, P0=4.2, **slab), jm.CPDI(), ts, dt=dt))
+    x = x + 0.01 * np.random.default_rng(1).standard_normal(x.size)
+    with pytest.warns(cal.CalibrationWarning, match="did not converge in 25 iterations"):
+        fit = cal.calibrate(
+            jm.GasSlab(**slab),
+            jm.CPDI(),
+            ts,
+            x,
+            starts=dict(gamma=1.4, P0=3.8),
+            dt=dt,
+            method="adam",
+            iterations=25,
+            progress=False,
+        )
+    assert fit.failed_starts == {} and fit.iterations == 25
+    assert fit.rejected and all(e["broke"] and np.isnan(e["loss"]) for e in fit.rejected)
+    assert "particle left the grid" in fit.rejected[0]["why"]
+    assert np.all(np.isfinite(fit.history)) and fit.loss < 0.1 * fit.history[0, 0]
+    assert np.all(np.isfinite(cal.trajectory(jm.GasSlab(**slab, **fit.fitted), jm.CPDI(), ts, dt=dt)))
+
+
 def test_calibration_reports_a_broken_trial_and_bad_input(synthetic):
     sc, dt, x = synthetic
     with pytest.raises(

@@ -148,6 +148,14 @@ def test_noise_draws_cover_the_truth_and_the_errors_match_the_spread():
     X = x + sigma * np.random.default_rng(1).standard_normal((64, x.size))
     fits = cal.calibrate_each(jm.GasSlab(**slab), jm.CPDI(), ts, X, start=dict(gamma=1.45, P0=2.9e5), dt=dt)
     assert all(f.converged and f.warning is None for f in fits)
+    # each data set's iterations and history are its own, as a fit of that set alone gives them
+    iterations = np.array([f.iterations for f in fits])
+    assert iterations.min() < iterations.max()
+    assert all(f.history.shape == (f.iterations + 1, 1) and f.history[-1, 0] == f.loss for f in fits)
+    b = int(np.argmin(iterations))
+    alone = cal.calibrate(jm.GasSlab(**slab), jm.CPDI(), ts, X[b], starts=dict(gamma=1.45, P0=2.9e5), dt=dt)
+    assert alone.iterations == fits[b].iterations  # the fitted values: to round-off (batch of 64 or 1)
+    assert alone.fitted == pytest.approx(fits[b].fitted, rel=1e-12)
     for k, v in dict(gamma=1.4, P0=3e5).items():
         values = np.array([f.fitted[k] for f in fits])
         std = np.array([f.std[k] for f in fits])
@@ -337,6 +345,28 @@ def test_cli_blocked_fit_with_json_prints_why_and_an_ensemble_refuses_it(tmp_pat
     assert err == f"jaxmpm: error: --from-fit: {fit} is a fit that has no answer: {out['error']}\n"
 
 
+def test_cli_reports_the_loss_history_and_iterations_of_the_best_start(tmp_path, capsys):
+    """The start that breaks down comes first: the reported history and iteration count are those of
+    the best start, as a fit from that start alone gives them, not start 0's."""
+    scene, t, data, starts, dt = calibration_case()
+    starts = starts[::-1]
+    path = _csv(tmp_path / "traj.csv", t, data)
+    argv = ["calibrate", "gas-slab", "cells=16", "h=0.0625", "pad=96", "--data", path, "--dt", repr(dt)]
+    for s in starts:
+        argv += ["--start", ",".join(f"{k}={v!r}" for k, v in s.items())]
+    assert main(argv + ["--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    best = out["best_start"]
+    assert list(out["failed_starts"]) == ["0"] and best != 0
+    history = out["loss_history"]
+    assert len(history) == out["iterations"] + 1 and history[-1] == out["loss"]
+    alone = jm.calibrate.calibrate(
+        scene, jm.CPDI(), t, data, fit=("gamma", "P0"), starts=starts[best], dt=dt, progress=False
+    )
+    assert out["iterations"] == alone.iterations
+    np.testing.assert_allclose(history, alone.history[:, 0], rtol=1e-9)
+
+
 def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path, capsys):
     scene, t, data, starts, dt = calibration_case()
     path = _csv(tmp_path / "traj.csv", t, data)
@@ -356,6 +386,10 @@ def test_cli_several_starts_report_the_best_and_the_one_that_broke_down(tmp_path
     assert out["starts_fitted"][3] is None and out["best_start"] != 3
     assert out["start"] == starts[out["best_start"]]
     assert out["fitted"] == out["starts_fitted"][out["best_start"]]
+    # the loss history is the best start's: one entry per iteration it took and its start, ending
+    # at the reported loss
+    assert len(out["loss_history"]) == out["iterations"] + 1 and out["loss_history"][-1] == out["loss"]
+    assert all(v is not None for v in out["loss_history"])
     assert out["fitted"]["gamma"] == pytest.approx(1.4, rel=6e-3)  # measured -2.3e-3
     assert out["fitted"]["P0"] == pytest.approx(3e5, rel=6e-3)  # measured -5.7e-4
     usage(

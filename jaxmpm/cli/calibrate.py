@@ -438,7 +438,7 @@ def command(args) -> int:
             None if i in fit.failed_starts else {n: float(fit.starts_fitted[n][i]) for n in names}
             for i in range(len(starts))
         ],
-        loss_history=[float(v) for v in fit.history[:, 0]],
+        loss_history=[float(v) for v in fit.history[: fit.iterations + 1, fit.best_start]],
         converged=fit.converged,
         std={k: _number(v) for k, v in fit.std.items()},
         correlation=matrix(fit.correlation),
