@@ -29,8 +29,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
-from ._checks import brief, check_bool, check_positive, is_concrete
+from ._checks import brief, check_bool, check_positive, check_real, is_concrete
 from ._simulate import Solution, simulate
 from ._step import check_scene
 from ._util import as_float
@@ -154,7 +155,7 @@ def _measured(
     steps: int,
     error: str | Callable[[AbstractScene, Solution], jax.Array],
     **simulate_kwargs,
-) -> Callable[[dict[str, jax.Array]], tuple[jax.Array, State]]:
+) -> Callable[[dict[str, ArrayLike]], tuple[jax.Array, State]]:
     """Check what ``objective`` checks before tracing; return ``{name: value} -> (error, state)``, the
     error measured whatever the run's status (that of its last good state where it broke down)."""
     check_scene(scene)
@@ -173,9 +174,19 @@ def _measured(
             f"or a function (scene, solution) -> scalar, got {brief(error)}"
         )
 
-    def measured(values: dict[str, jax.Array]) -> tuple[jax.Array, State]:
+    def measured(values: dict[str, ArrayLike]) -> tuple[jax.Array, State]:
+        if not isinstance(values, dict):
+            raise ValueError(f"values must be a dict of parameter name to value, got {brief(values)}")
+        missing = [n for n in names if n not in values]
+        if missing:
+            raise ValueError(
+                f"values must hold a value for each of {', '.join(names)}; missing: {', '.join(missing)}"
+            )
+        for n in names:
+            check_real(f"values[{n!r}]", values[n])
         where = lambda s: [getattr(s, n) for n in scene_names]
-        sc = eqx.tree_at(where, scene, [values[n] for n in scene_names])
+        # as the scene's fields are: 0-d arrays of the float dtype (a tracer passes unchanged)
+        sc = eqx.tree_at(where, scene, [as_float(values[n]) for n in scene_names])
         step = values["dt"] if "dt" in values else dt
         sol = simulate(sc, interpolator, dt=step, steps=steps, **simulate_kwargs)
         if callable(error):
@@ -195,7 +206,7 @@ def objective(
     error: str | Callable[[AbstractScene, Solution], jax.Array] = "F_rms_rel",
     with_status: bool = False,
     **simulate_kwargs,
-) -> Callable[[dict[str, jax.Array]], jax.Array | tuple[jax.Array, jax.Array]]:
+) -> Callable[[dict[str, ArrayLike]], jax.Array | tuple[jax.Array, jax.Array]]:
     """A function ``{name: value} -> scalar`` of the named parameters, for ``jax.grad`` and friends.
 
     A run that broke down (with ``throw=False``; by default ``simulate`` raises) never gives an error
@@ -236,13 +247,13 @@ def objective(
     throws = simulate_kwargs.get("throw", True)  # (simulate checks that it is a bool)
     if with_status:
 
-        def with_its_status(values: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array]:
+        def with_its_status(values: dict[str, ArrayLike]) -> tuple[jax.Array, jax.Array]:
             value, state = measured(values)
             return value, state.status
 
         return with_its_status
 
-    def f(values: dict[str, jax.Array]) -> jax.Array:
+    def f(values: dict[str, ArrayLike]) -> jax.Array:
         value, state = measured(values)
         if is_concrete(state.status):
             _refuse_broken(

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import INTERPOLATORS, TRANSFERS
+from helpers import INTERPOLATORS, TRANSFERS, raw
 
 import jaxmpm as jm
 from jaxmpm.cli import main
@@ -175,6 +175,20 @@ def test_zero_error_has_zero_gradient_not_nan():
     """APIC's first step is exact, so F_rms_rel = 0 there; its derivative must be 0, not NaN."""
     g = jm.gradient(jm.GasExpansion(cells=3), jm.SPQ(), ["beta", "h"], dt=1e-5, steps=1, transfer=jm.APIC())
     assert all(float(v) == 0.0 for v in g.values()), g
+
+
+def test_objective_takes_plain_numbers_for_every_parameter():
+    """Values as Python floats (or ints) give what 0-d float64 arrays give, the grid spacing too; a
+    value that is not a number, or a missing name, is a ValueError naming it."""
+    names = ["beta", "h", "dt"]
+    f = jm.sensitivity.objective(jm.GasExpansion(cells=4), jm.MPQ(), names, dt=1e-5, steps=5)
+    arrays = f({"beta": jnp.asarray(200.0), "h": jnp.asarray(0.125), "dt": jnp.asarray(1e-5)})
+    assert float(arrays) > 1e-6
+    assert float(f({"beta": 200, "h": 0.125, "dt": 1e-5})) == float(arrays)
+    with pytest.raises(ValueError, match=r"values\['h'\] must be a real number, got 'a'"):
+        raw(f)({"beta": 200.0, "h": "a", "dt": 1e-5})  # without the suite's type checks: what a user runs
+    with pytest.raises(ValueError, match=r"values must hold a value for each of beta, h, dt; missing: h"):
+        f({"beta": 200.0, "dt": 1e-5})
 
 
 def test_bad_gradient_names():
