@@ -97,6 +97,33 @@ def test_total_energy_between_walls_is_conserved_to_the_stated_bound(name):
     assert float(d["energy_kinetic"]) > 0.05  # the energy really moved between kinetic and internal
 
 
+def test_a_shock_tube_whose_gas_moves_at_a_wall_has_no_valid_exact_solution():
+    """A wall stops the gas beside it at once: with u_l or u_r not 0 it starts a wave at t = 0 that
+    the open tube's solution leaves out (Toro's Test 2: two rarefactions, rho 1, p 0.4, u -2 and 2)."""
+    sod = jm.ShockTube()
+    w = sod.waves()
+    expected = min(0.5 / -float(w["head_l"]), 0.5 / float(w["head_r"]))
+    assert float(sod.t_valid) == pytest.approx(expected, rel=1e-15) and expected > 0.2
+    for u_l, u_r in ((-2.0, 2.0), (0.5, 0.0), (0.0, -0.3)):
+        tube = jm.ShockTube(rho_l=1.0, u_l=u_l, p_l=0.4, rho_r=1.0, u_r=u_r, p_r=0.4)
+        assert float(tube.t_valid) == 0.0
+        assert not jm.metrics.exact_holds(tube, 1e-6) and jm.metrics.exact_holds(tube, 0.0)
+
+
+@pytest.mark.slow
+def test_noh_exact_solution_holds_until_the_shock_reaches_the_free_end():
+    """The free end comes at u0 while the shock leaves the wall at D: they meet at L / (u0 + D), 0.75
+    for the defaults (L = 1, u0 = 1, D = 1/3); then the shocked gas expands from its free end."""
+    scene = jm.Noh()
+    assert float(scene.t_valid) == pytest.approx(0.75, rel=1e-15)
+    assert float(jm.Noh(u0=2.0, gamma=1.4, cells=10, h=0.3).t_valid) == pytest.approx(3.0 / 2.4, rel=1e-15)
+    assert jm.metrics.exact_holds(scene, 0.75) and not jm.metrics.exact_holds(scene, 0.76)
+    small = jm.Noh(cells=20, h=1 / 20)
+    kw = dict(cfl=0.2, max_steps=10_000, viscosity=jm.ArtificialViscosity())
+    late = jm.simulate(small, jm.CPDI(), t_end=0.8, **kw)
+    assert int(late.status) == 0 and jm.euler_errors(small, late.state, late.body) is None
+
+
 def test_noh_post_shock_density_and_shock_position():
     """200 cells, 2 particles per cell, CPDI, default viscosity, CFL 0.2, t = 0.6: the shock is at 0.2.
 

@@ -24,7 +24,8 @@ class Noh(AbstractScene):
     flux", J. Comput. Phys. 72, 1987); for ``gamma = 5/3``: ``D = 1/3``, ``rho = 4``, ``p = 4/3``.
     Artificial viscosity heats the first particles at the wall too much and leaves their density
     low (Noh's wall heating), a known error of every viscous scheme. The gas's far end is free and
-    carries no pressure (``p = 0`` there), so nothing comes back from it.
+    carries no pressure (``p = 0`` there), so nothing comes back from it until the shock reaches it,
+    at ``t_valid = L / (u0 + D)`` (0.75 for the defaults); then the shocked gas expands from it.
 
     Attributes:
         rho0: initial density, > 0.
@@ -73,6 +74,12 @@ class Noh(AbstractScene):
     def shock_speed(self) -> Float[Array, ""]:
         """The speed ``(gamma - 1) u0 / 2`` at which the shock leaves the wall."""
         return 0.5 * (self.gamma - 1.0) * self.u0
+
+    @property
+    def t_valid(self) -> Float[Array, ""]:
+        """When the shock reaches the gas's free end, ``L / (u0 + D)`` (the exact solution holds until
+        then)."""
+        return self.cells * self.h / (self.u0 + self.shock_speed)
 
     def solution(self, x: Float[ArrayLike, "*shape"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
         """The exact solution at Eulerian positions ``x`` (``exact_euler.noh``).

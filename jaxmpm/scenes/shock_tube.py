@@ -63,8 +63,10 @@ class ShockTube(AbstractScene):
 
     The gas carries internal energy (``jaxmpm.IdealGas``, ``e = p / ((gamma - 1) rho)``): a shock
     is a shock of the Euler equations, its jump fixed by the Rankine-Hugoniot conditions, and
-    ``exact_euler`` gives the solution until the first wave reaches a wall. MPM rings behind a
-    shock; ``simulate(..., viscosity=jm.ArtificialViscosity())`` damps it and heats the gas.
+    ``exact_euler`` gives the solution until the first wave reaches a wall (``t_valid``; for gas at
+    rest at the walls: moving gas there is stopped at once, a wave the solution leaves out). MPM
+    rings behind a shock; ``simulate(..., viscosity=jm.ArtificialViscosity())`` damps it and heats
+    the gas.
 
     The defaults are Sod's problem (Sod 1978; Toro, "Riemann Solvers and Numerical Methods for Fluid
     Dynamics", Table 4.1, Test 1) on ``[0, 1]``: star state ``p* = 0.30313``, ``u* = 0.92745``,
@@ -170,9 +172,12 @@ class ShockTube(AbstractScene):
 
     @property
     def t_valid(self) -> Float[Array, ""]:
-        """When the first wave reaches a wall (the exact solution of the open tube holds until then)."""
+        """When the first wave reaches a wall (the exact solution of the open tube holds until then);
+        0 where the gas moves at a wall (``u_l`` or ``u_r`` not 0): the wall stops it at once, and
+        the wave that starts there is not in the open tube's solution."""
         w = self.waves()
-        return jnp.minimum(self.X0 / -w["head_l"], (self.length - self.X0) / w["head_r"])
+        first = jnp.minimum(self.X0 / -w["head_l"], (self.length - self.X0) / w["head_r"])
+        return jnp.where((self.u_l == 0.0) & (self.u_r == 0.0), first, 0.0)
 
     def solution(self, x: Float[ArrayLike, "*shape"], t: Float[ArrayLike, ""]) -> dict[str, Array]:
         """The exact solution at Eulerian positions ``x`` (``exact_euler.riemann_solution``).
