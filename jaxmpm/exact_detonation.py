@@ -624,15 +624,16 @@ def _fan_fields(fan, x, t):
             u = jnp.where(x < 0.0, -u, u)
         else:
             u, c, p, J = (jnp.where(below, jnp.nan, f) for f in (u, c, p, J))
-        return dict(
-            u=jnp.where(ahead, 0.0, u),
-            c=jnp.where(ahead, 0.0, c),
-            p=jnp.where(ahead, 0.0, p),
-            rho=jnp.where(ahead, fan.rho0, fan.rho0 / J),
-            J=jnp.where(ahead, 1.0, J),
+        return (
+            jnp.where(ahead, 0.0, u),
+            jnp.where(ahead, 0.0, c),
+            jnp.where(ahead, 0.0, p),
+            jnp.where(ahead, fan.rho0, fan.rho0 / J),
+            jnp.where(ahead, 1.0, J),
         )
 
-    return jnp.vectorize(one)(x, t)
+    # a tuple, not a dict: jnp.vectorize restores the axes of length 1 of a tuple's arrays only
+    return dict(zip(("u", "c", "p", "rho", "J"), jnp.vectorize(one)(x, t)))
 
 
 @eqx.filter_jit
@@ -666,19 +667,20 @@ def _fan_particles(fan, X, t):
             x, u = sign * x, sign * u
         else:
             x, u, c, p, J = (jnp.where(below, jnp.nan, f) for f in (x, u, c, p, J))
-        out = dict(
-            x=jnp.where(lit, x, X),
-            F=jnp.where(lit, J, 1.0),
-            u=jnp.where(lit, u, 0.0),
-            c=jnp.where(lit, c, 0.0),
-            p=jnp.where(lit, p, 0.0),
-            rho=jnp.where(lit, fan.rho0 / J, fan.rho0),
+        out = (
+            jnp.where(lit, x, X),
+            jnp.where(lit, J, 1.0),
+            jnp.where(lit, u, 0.0),
+            jnp.where(lit, c, 0.0),
+            jnp.where(lit, p, 0.0),
+            jnp.where(lit, fan.rho0 / J, fan.rho0),
         )
         if wall:
             return out
-        return {k: jnp.where(X < 0.0, jnp.nan, v) for k, v in out.items()}  # not explosive
+        return tuple(jnp.where(X < 0.0, jnp.nan, v) for v in out)  # not explosive
 
-    return jnp.vectorize(one)(X, t)
+    # a tuple, not a dict: jnp.vectorize restores the axes of length 1 of a tuple's arrays only
+    return dict(zip(("x", "F", "u", "c", "p", "rho"), jnp.vectorize(one)(X, t)))
 
 
 def _check_own_rho0(p_s, rho0) -> None:

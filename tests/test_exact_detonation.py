@@ -214,6 +214,24 @@ def test_quadrature_reproduces_gamma_law(gamma, end):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("end", ENDS)
+def test_a_fan_takes_arrays_of_any_shape_axes_of_length_one_too(end):
+    """fields and particles broadcast their arguments like NumPy: an axis of length 1 stays, and each
+    entry is what the same point alone gives."""
+    p_s = Isentrope(JWLIsentrope(rho0=RHO0_TNT, **TNT))
+    cj = cj_point(p_s, RHO0_TNT)
+    fan = isentrope_fan(p_s, RHO0_TNT, cj["D"], cj["J_CJ"], end=end)
+    t = 0.6 / float(cj["D"])
+    for X in (np.array([0.3]), np.array([[0.3], [0.45]]), np.array([0.3, 0.45])):
+        for what in ("fields", "particles"):
+            out = getattr(fan, what)(X, t)
+            for k, v in out.items():
+                assert v.shape == X.shape, (what, k, X.shape, v.shape)
+                alone = [float(getattr(fan, what)(x, t)[k]) for x in X.ravel()]
+                np.testing.assert_array_equal(np.asarray(v).ravel(), alone)
+
+
+@pytest.mark.slow
 def test_quadrature_on_jwl():
     """The TNT detonation on its JWL isentrope: the CJ point, the fan's invariant against its integrand,
     and the particle paths against the fields and against a diffrax integration of dx/dt = u(x, t)."""
