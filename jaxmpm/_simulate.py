@@ -435,7 +435,7 @@ def run_scan(
         ts = jnp.concatenate([state0.t[None], saved["t"]])
     else:
         frame_steps = jnp.arange(steps // saveat.every + 1, dtype=state.step.dtype) * saveat.every
-        ts = jnp.arange(steps // saveat.every + 1, dtype=dt.dtype) * (saveat.every * dt)
+        ts = frame_steps.astype(dt.dtype) * dt  # as each step sets its t: step * dt
         # After a breakdown the state stays at its last good step, and every later save repeats
         # it: those frames carry its time, not one the run never reached.
         ts = jnp.where(frame_steps <= state.step, ts, state.t.astype(ts.dtype))

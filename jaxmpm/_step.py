@@ -1232,9 +1232,11 @@ def _propose(model, setup, state, dt, limit, active, t_new):
         mass_a, momentum_a = _transfer_to_grid(grid, transfer, st_a, x_a, v_a, C_a, m_a)
         mass_all, momentum = mass_all + mass_a, momentum + momentum_a
         lo, hi = interp.extent(r0_a, x_a, F_a, None)
-        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, src, _off_grid(grid, lo, hi))))
+        # reported on the source it is extrapolated from most: the boundary particle next to it
+        nearest = jnp.take_along_axis(layer.src, jnp.argmax(layer.weights, axis=1)[:, None], axis=1)[:, 0]
+        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, nearest, _off_grid(grid, lo, hi))))
         if st_a.ok is not None:
-            pre_checks.append((st_bits.STENCIL, _on_sources(body.n, src, ~st_a.ok)))
+            pre_checks.append((st_bits.STENCIL, _on_sources(body.n, nearest, ~st_a.ok)))
     # A node mass below a few hundred ulps of a particle's mass is round-off in the weights (a domain
     # edge exactly on a node gives its far neighbour 1e-31 instead of 0), not mass: such a node counts
     # as empty. Otherwise a/m there is round-off divided by round-off, and the run depends on which.
@@ -1261,6 +1263,12 @@ def _propose(model, setup, state, dt, limit, active, t_new):
             tr = tr * tp.area[:, None]
         t_idx, t_s, _ = points_stencil(grid, state.x_traction, gradients=False)
         f = f + grid.scatter(t_idx, t_s[..., None] * tr[:, None, :])
+        # a traction point off the grid would drop its force, a non-finite one spread NaN: reported on
+        # the particle whose domain corner it is, before the step uses it
+        tr_finite = _finite_rows(state.x_traction)
+        off = _off_grid(grid, state.x_traction, state.x_traction) & tr_finite
+        pre_checks.append((st_bits.NONFINITE, _on_sources(body.n, tp.owner, ~tr_finite)))
+        pre_checks.append((st_bits.LEFT_GRID, _on_sources(body.n, tp.owner, off)))
         bad_tr = ~jnp.isfinite(tr_face).all(1)  # reported on a particle next to the loaded face
         pre_checks.append(
             (st_bits.SCENE_DATA, jnp.zeros(body.n, dtype=bool).at[jnp.asarray(tp.report)].set(bad_tr))
@@ -1327,6 +1335,8 @@ def _propose(model, setup, state, dt, limit, active, t_new):
     # Checks: a failing step is discarded, so the state kept is always the last good one.
     checks = []
     finite = _finite_particles(body, x_p, v_p, F_new, sigma, corners, e_new, internal)
+    if state.x_traction is not None:
+        finite = finite & ~_merge(pre_checks, st_bits.NONFINITE, body.n)
     checks.append((st_bits.NONFINITE, ~finite))
     checks.append((st_bits.NONPOSITIVE_F, det(F_new) <= 0.0))
     if e_new is not None:
@@ -1668,7 +1678,8 @@ def _off_grid(grid: Grid, lo, hi):
 
 
 def _on_sources(n: int, src, mask):
-    """An artificial particle's failure, reported on the real particle it was extrapolated from."""
+    """A failure of a point the step carries beside the particles (an artificial particle, a traction
+    point), reported on the real particle ``src`` it belongs to."""
     return jnp.zeros(n, dtype=jnp.int32).at[src].max(mask.astype(jnp.int32)) > 0
 
 

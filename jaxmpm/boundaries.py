@@ -184,10 +184,13 @@ class TractionPoints(eqx.Module):
         area: reference area each point carries ``(k,)`` (unit in 1D: ``None``).
         counts: points per loaded face, in the order of ``scene.traction``'s non-``None`` entries (static).
         report: the real particle next to each loaded face, on which bad traction data is reported (static).
+        owner: the real particle whose domain corner each point is ``(k,)``, on which a point that
+            leaves the grid or is not finite is reported.
     """
 
     X: Float[Array, "k dim"]
     area: Float[Array, " k"] | None
+    owner: Int[Array, " k"]
     counts: tuple[int, ...] = eqx.field(static=True)
     report: tuple[int, ...] = eqx.field(static=True)
 
@@ -216,7 +219,7 @@ def traction_points(
     """
     dim = len(faces) // 2
     n = cells * ppc
-    pts, areas, counts, report = [], [], [], []
+    pts, areas, counts, report, owner = [], [], [], [], []
     along = np.arange(n + 1) / ppc  # the corners along a face
     share = np.ones(n + 1)
     share[[0, -1]] = 0.5
@@ -237,11 +240,20 @@ def traction_points(
         first = np.zeros(dim, dtype=int)
         first[a] = n - 1 if high else 0
         report.append(int(np.ravel_multi_index(tuple(first), (n,) * dim)))
+        index = np.minimum(L, n - 1)  # corner j along a face borders particle min(j, n - 1)
+        index[:, a] = first[a]
+        owner.append(np.ravel_multi_index(tuple(index.T), (n,) * dim))
     if not pts:
         return None
     X = jnp.asarray(np.concatenate(pts), dtype=h.dtype) * h
     area = None if dim == 1 else jnp.asarray(np.concatenate(areas), dtype=h.dtype) * h ** (dim - 1)
-    return TractionPoints(X=X, area=area, counts=tuple(counts), report=tuple(report))
+    return TractionPoints(
+        X=X,
+        area=area,
+        owner=jnp.asarray(np.concatenate(owner), dtype=jnp.int32),
+        counts=tuple(counts),
+        report=tuple(report),
+    )
 
 
 def fixed_mask(axes: tuple[int, ...], pad: int, cells: int, low: str, high: str) -> np.ndarray | None:

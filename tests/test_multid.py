@@ -116,8 +116,9 @@ def test_uniform_stress_balances_the_face_tractions_after_the_body_moved(name):
 @pytest.mark.parametrize("name", ["spq", "cpdi", "mpq"])
 def test_the_state_kept_after_a_breakdown_is_the_last_good_one_bit_for_bit(name, dim):
     """A gas compressed at beta < 0 breaks down (in 2D a particle leaves the grid, in 3D the state goes
-    non-finite): the state the run keeps is exactly that of the same run stopped at its last good step,
-    every field, bit for bit, and nothing of the discarded step leaks into it."""
+    non-finite, but for SPQ, whose face's traction point leaves the grid first, at step 17 of 27): the
+    state the run keeps is exactly that of the same run stopped at its last good step, every field,
+    bit for bit, and nothing of the discarded step leaks into it."""
     scene = jm.GasExpansion(beta=-2000.0, cells=3, dim=dim, pad=2)
     kw = dict(dt=1e-5, cfl_limit=None)
     broken = jm.simulate(scene, jm.INTERPOLATORS[name](), steps=100, throw=False, **kw)
@@ -125,7 +126,9 @@ def test_the_state_kept_after_a_breakdown_is_the_last_good_one_bit_for_bit(name,
     last_good = int(broken.state.step)
     assert int(broken.status) != 0 and fail["step"] == last_good + 1 and 0 < last_good < 100
     if dim == 3:
-        assert "non-finite state (x, v, F or sigma is NaN or inf)" in fail["quantities"]
+        left = "particle left the grid (its query points reach past the padded grid; raise pad)"
+        nonfinite = "non-finite state (x, v, F or sigma is NaN or inf)"
+        assert (left if name == "spq" else nonfinite) in fail["quantities"]
     good = jm.simulate(scene, jm.INTERPOLATORS[name](), steps=last_good, **kw)
     assert int(good.status) == 0
     for field in ("t", "step", "x", "v", "F", "sigma", "C", "corners", "x_traction", "e"):
