@@ -215,15 +215,14 @@ def _interpolator_from(meta: dict) -> AbstractInterpolator:
     return INTERPOLATORS[meta["name"]](**options)
 
 
-def _scene_params(scene) -> dict:
+def _unsaved_field(scene) -> str | None:
+    """The first field of ``scene`` that is not one of its parameters and not its default (a Python
+    object a file cannot record: the parts of ``jm.Bodies``), or ``None``."""
     named = scene.parameters()
     for f in dataclasses.fields(scene):
         if f.name not in named and getattr(scene, f.name) is not f.default:
-            raise ValueError(
-                f"a saved run records the scene by its parameters, and {f.name} of {scene.name} is not one "
-                f"(a Python function cannot be saved); run it with simulate instead"
-            )
-    return scene.parameter_values()
+            return f.name
+    return None
 
 
 def _write_npz(path: pathlib.Path, arrays: dict) -> None:
@@ -233,8 +232,8 @@ def _write_npz(path: pathlib.Path, arrays: dict) -> None:
     that fails (a full disk) removes its temporary file and raises the ``OSError``.
     """
     write_whole(path, lambda f: np.savez(f, **arrays), durable=True)
-    try:  # make the rename itself durable
-        fd = os.open(path.parent, os.O_RDONLY)
+    try:  # make the rename itself durable (in the folder of the file a link names)
+        fd = os.open(os.path.dirname(os.path.realpath(path)), os.O_RDONLY)
         try:
             os.fsync(fd)
         finally:
@@ -723,8 +722,15 @@ def run_timed(
     )
     if saveat.every is not None and chunk % saveat.every:
         raise ValueError(f"chunk must be a multiple of saveat.every, got chunk={chunk}, every={saveat.every}")
-    chunk = min(chunk, max(-(-steps // (saveat.every or 1)) * (saveat.every or 1), 1))  # no more than the run
-    params = _scene_params(scene)
+    every = saveat.every or 1
+    chunk = min(chunk, max(-(-steps // every) * every, every))  # no more than the run
+    unsaved = _unsaved_field(scene)
+    if unsaved is not None and out is not None:
+        raise ValueError(
+            f"a saved run records the scene by its parameters, and {unsaved} of {scene.name} is not one "
+            f"(a Python function cannot be saved); run it without out, or with simulate"
+        )
+    params = None if unsaved is not None else scene.parameter_values()  # (nothing is saved then)
     out = None if out is None else _check_out(out, overwrite=overwrite)
     meta = dict(
         format=FORMAT,
@@ -1183,6 +1189,19 @@ def _load(path: pathlib.Path, on_devices: bool = True):
             f"{path}: state.status is {int(state.status)} (a breakdown) but state.fail_step is {fail}, "
             f"not the step after the kept state's ({meta['step'] + 1}); the file was edited or is damaged"
         )
+    if int(state.status) != 0:
+        unknown = int(state.status) & ~sum(st_bits.QUANTITY)
+        if unknown:
+            raise ValueError(
+                f"{path}: state.status is {int(state.status)}, which holds bits that no check sets "
+                f"({unknown}); the file was edited or is damaged"
+            )
+        n, p = X.shape[0], int(state.fail_particle)
+        if not -1 <= p < n:
+            raise ValueError(
+                f"{path}: state.fail_particle is {p}, not one of the run's {n} particles (0 to {n - 1}) or "
+                "-1 (the run itself); the file was edited or is damaged"
+            )
     if int(state.status) == 0:  # a healthy state is finite: every step checks it
         for name in ("x", "v", "F", "sigma", "e"):
             a = fields.get(name)

@@ -116,6 +116,39 @@ def test_a_breakdown_at_a_step_that_does_not_follow_the_kept_state(good, tmp_pat
     )
 
 
+@pytest.mark.parametrize(
+    "status, particle, fragment",
+    [
+        (
+            4,
+            99,
+            "state.fail_particle is 99, not one of the run's 8 particles (0 to 7) or -1 (the run itself)",
+        ),
+        (
+            4,
+            -7,
+            "state.fail_particle is -7, not one of the run's 8 particles (0 to 7) or -1 (the run itself)",
+        ),
+        (1024 + 4, 3, "state.status is 1028, which holds bits that no check sets (1024)"),
+    ],
+)
+def test_a_breakdown_on_a_particle_the_run_lacks_or_of_unknown_bits(
+    good, tmp_path, capsys, status, particle, fragment
+):
+    """A broken run names the particle that broke down (or -1, the run itself) and known bits only: a
+    file naming particle 99 of 8 made `jaxmpm resume` print a traceback."""
+    a = arrays_of(good)
+    path = variant(
+        good,
+        tmp_path,
+        meta={"status": status},
+        state__status=np.asarray(status, dtype=a["state.status"].dtype),
+        state__fail_step=np.asarray(21, dtype=a["state.fail_step"].dtype),
+        state__fail_particle=np.asarray(particle, dtype=a["state.fail_particle"].dtype),
+    )
+    assert_refused(path, capsys, fragment, "the file was edited or is damaged")
+
+
 def test_a_step_past_the_runs_steps(good, tmp_path, capsys):
     assert_refused(variant(good, tmp_path, meta={"steps": 10}), capsys, "step 20 of a run of 10 steps")
 

@@ -441,3 +441,41 @@ def test_a_chunk_longer_than_the_run_is_cut_to_it(tmp_path):
         scene, jm.SPQ(), dt=1e-5, steps=10, chunk=400, saveat=saveat, out=out, overwrite=True, progress=False
     )
     assert long_run.load(out)[1]["chunk"] == 12  # a multiple of every, covering the 10 steps
+    long_run.run(
+        scene, jm.SPQ(), dt=1e-5, steps=0, chunk=400, saveat=saveat, out=out, overwrite=True, progress=False
+    )
+    sol, meta = long_run.load(out)  # a run of no steps: its chunk is still a multiple of every
+    assert meta["chunk"] == 4 and meta["complete"] and sol.history["x"].shape[0] == 1
+
+
+@pytest.mark.slow
+def test_a_scene_of_parts_runs_in_chunks_when_nothing_is_saved(tmp_path):
+    """A ``jm.Bodies`` scene is made of Python objects that a file cannot record: saved, it is refused;
+    run without ``out``, it runs in chunks as ``simulate`` runs it."""
+    from jaxmpm.geometry import Box
+
+    part = jm.Region(Box(0.0, 4.0), jm.LinearElastic(E=100.0), 1.0, 0.5)
+    scene = jm.Bodies(parts=(part,), cells=10, ppc=1, h=0.1, pad=3)
+    sol = long_run.run(scene, jm.CPDI(), dt=1e-3, steps=20, chunk=5, progress=False)
+    ref = jm.simulate(scene, jm.CPDI(), dt=1e-3, steps=20)
+    assert np.asarray(sol.state.x).tobytes() == np.asarray(ref.state.x).tobytes()
+    with pytest.raises(ValueError, match="a saved run records the scene by its parameters"):
+        long_run.run(scene, jm.CPDI(), dt=1e-3, steps=20, chunk=5, progress=False, out=tmp_path / "a.npz")
+
+
+def test_a_checkpoint_through_a_link_is_written_to_the_file_it_names(tmp_path):
+    """A link to a checkpoint stays a link: resuming or overwriting through it writes the file it
+    points to."""
+    scene = jm.GasExpansion(cells=4)
+    (tmp_path / "data").mkdir()
+    target = tmp_path / "data" / "run.npz"
+    link = tmp_path / "link.npz"
+    long_run.run(scene, jm.SPQ(), dt=1e-5, steps=10, chunk=5, out=target, progress=False)
+    with np.load(target) as f:  # as if stopped at step 10 of 20
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["meta"]))
+    arrays["meta"] = np.asarray(json.dumps(dict(meta, steps=20, complete=False)))
+    np.savez(target, **arrays)
+    link.symlink_to(target)
+    long_run.resume(link, progress=False)
+    assert link.is_symlink() and long_run.load(target)[1]["step"] == 20
