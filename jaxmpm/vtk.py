@@ -533,9 +533,10 @@ def _place(tmp: pathlib.Path, path: pathlib.Path, overwrite: bool) -> None:
 
 def _breakdown_comment(failure: dict, state) -> str:
     """The XML comment of a ``.pvd`` file that says the series ends at a breakdown."""
+    who = "the run itself" if failure["particle"] < 0 else f"first at particle {failure['particle']}"
     text = (
         f"jaxmpm: the run broke down at step {failure['step']} ({' and '.join(failure['quantities'])}; "
-        f"first at particle {failure['particle']}): the last frame is its last good state, step "
+        f"{who}): the last frame is its last good state, step "
         f"{int(state.step)}, t = {float(state.t)!r}, not the end of the run"
     )
     return f"<!-- {text.replace('--', '- -')} -->"

@@ -57,6 +57,19 @@ def test_ensemble_withholds_x_free_of_members_that_broke_down(capsys):
 
 
 @pytest.mark.slow
+def test_ensemble_table_says_the_run_itself_failed_not_particle_minus_one(capsys):
+    """Members that ran out of steps (--max-steps) failed as a whole: the table says "the run"."""
+    argv = ["ensemble", "shock-tube", "cells=21", "ppc=1", "--interpolator", "cpdi", "--vary", "p_l=0.5:2"]
+    argv += ["--members", "2", "--t-end", "0.2", "--max-steps", "20"]
+    assert main(argv) == 3
+    lines = capsys.readouterr().out.splitlines()[1:]
+    assert len(lines) == 2
+    for line in lines:
+        assert "FAILED at step 21, the run: max_steps steps were taken before t_end" in line, line
+        assert "particle" not in line
+
+
+@pytest.mark.slow
 def test_ensemble_withholds_f_max_rel_of_members_that_broke_down_and_keeps_the_key(capsys):
     argv = ["ensemble", "gas-expansion", "cells=2", "--vary", "beta=100:20000", "--members", "4"]
     out = _json_run(capsys, argv + ["--dt", "1e-4", "--steps", "10"])

@@ -127,6 +127,27 @@ def test_a_broken_run_written_with_allow_broken_is_marked_in_the_collections(tmp
         assert [d.get("file") for d in sets] == [f"{kind}_{i:05d}.vtk" for i in range(frames)]
 
 
+def test_a_breakdown_of_the_run_itself_names_no_particle(tmp_path):
+    """A run that ran out of steps (max_steps) failed as a whole: the collection says so, not
+    "particle -1"."""
+    scene = jm.ShockTube(cells=21, ppc=1)
+    sol = jm.simulate(
+        scene,
+        jm.SPQ(),
+        t_end=0.2,
+        max_steps=40,
+        throw=False,
+        saveat=jm.SaveAt(every=10, fields=("x", "v", "F", "sigma", "e")),
+    )
+    assert sol.failure()["particle"] == -1
+    jm.vtk.write_series(tmp_path, jm.Model(scene, jm.SPQ(), jm.FLIP()), sol, allow_broken=True)
+    comment = re.search(r"<!-- (.*) -->", (tmp_path / "particles.pvd").read_text()).group(1)
+    assert (
+        "(max_steps steps were taken before t_end was reached (raise max_steps); the run itself)" in comment
+    )
+    assert "particle" not in comment
+
+
 def test_a_finished_run_has_no_breakdown_mark(tmp_path, cpdi_run):
     jm.vtk.write_series(tmp_path, jm.Model(SCENE, jm.CPDI(), jm.FLIP()), cpdi_run, allow_broken=True)
     for kind in ("particles", "grid"):

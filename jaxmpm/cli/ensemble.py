@@ -257,12 +257,13 @@ def command(args) -> int:
                 extra += "  F_max_rel=none (past t_valid, where the exact solution stops holding)"
             else:
                 extra += f"  F_max_rel={r['F_max_rel']:.3g}"
-        fail = (
-            f"  FAILED at step {r['failure']['step']}, particle {r['failure']['particle']}: "
-            f"{' and '.join(r['failure']['quantities'])}"
-            if "failure" in r
-            else ""
-        )
+        fail = ""
+        if "failure" in r:
+            p = r["failure"]["particle"]
+            fail = (
+                f"  FAILED at step {r['failure']['step']}, {'the run' if p < 0 else f'particle {p}'}: "
+                f"{' and '.join(r['failure']['quantities'])}"
+            )
         print(f"{i:>5} " + " ".join(f"{k}={v:.6g}" for k, v in r["params"].items()) + extra + fail)
     return status
 
