@@ -292,8 +292,8 @@ class Model(eqx.Module):
         check_parts(self.scene, self.interpolator, self.transfer, self.viscosity)
         check_int("artificial_cells", self.artificial_cells, 0)
         check_cfl_limit(self.cfl_limit)
-        if self.devices is not None:
-            check_devices(self.devices)
+        if self.devices is not None:  # (simulate takes a count; a Model holds the devices)
+            check_devices(self.devices, count=False)
             _check_every_process(self.devices)
         if self.ordering not in ORDERINGS:
             raise ValueError(f"ordering must be one of {ORDERINGS}, got {self.ordering!r}")
@@ -392,9 +392,12 @@ class Setup(eqx.Module):
     tiny: Float[Array, ""]
 
 
-def check_devices(devices) -> tuple[jax.Device, ...]:
-    """``devices`` as a tuple of distinct JAX devices, or a ``ValueError`` naming what is allowed."""
-    allowed = "a non-empty sequence of distinct JAX devices (e.g. jax.devices()) or a device count"
+def check_devices(devices, count: bool = True) -> tuple[jax.Device, ...]:
+    """``devices`` as a tuple of distinct JAX devices, or a ``ValueError`` naming what is allowed
+    (``count``: the caller takes a device count too, and the message offers it)."""
+    allowed = "a non-empty sequence of distinct JAX devices (e.g. jax.devices())"
+    if count:
+        allowed += " or a device count"
     if isinstance(devices, str):  # a sequence of letters, not of devices
         raise ValueError(f"devices must be {allowed}, got the string {devices!r}")
     try:
