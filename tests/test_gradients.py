@@ -233,3 +233,11 @@ def test_cli_grad(capsys):
         == 2
     )
     assert "ppc is structural" in capsys.readouterr().err
+
+
+def test_cli_grad_of_a_run_that_broke_down_is_null(capsys):
+    """A run that breaks down has no derivative: with --grad --json each is null, and grad_s too."""
+    argv = ["run", "gas-expansion", "cells=4", "--interpolator", "spq", "--dt", "1e-3", "--steps", "10"]
+    assert main(argv + ["--grad", "beta,h", "--json"]) == 3
+    out = json.loads(capsys.readouterr().out)
+    assert out["status"] != 0 and out["grad"] == {"beta": None, "h": None} and out["grad_s"] is None

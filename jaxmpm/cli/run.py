@@ -339,12 +339,15 @@ def _advance(model, state, dt, limit, chunk: int):
 
 def _breakdown_json(args, scene, sol, viscosity, vtk: dict | None = None, devices=None) -> None:
     """With ``--json``, the report of a run that broke down (its last good state, ``status`` and
-    ``failure``, and ``vtk``: the frames written up to it) on stdout, before the one line on stderr."""
+    ``failure``, ``vtk``: the frames written up to it, and with ``--grad`` each derivative null) on
+    stdout, before the one line on stderr."""
     if args.json:
         run = _settings(args, sol, viscosity, devices)
         if vtk is not None:
             run["vtk"] = vtk
-        report(run, scene, sol, None, None, as_json=True)
+        # no derivative of a run that broke down: each is null, as where F_rms_rel is not measured
+        grad = None if args.grad is None else dict.fromkeys(_assign.comma_list(args.grad, "--grad"))
+        report(run, scene, sol, None, None, grad=grad, as_json=True)
 
 
 def _where(scene, sol):
