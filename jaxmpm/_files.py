@@ -55,13 +55,10 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
     ``filename``, and no ``filename2``): ``[Errno 28] No space left on device: 'run.npz'``.
 
     Args:
-        path: the file to write (a link: the file it names, beside which the temporary file is made).
+        path: the file to write.
         write: writes the contents to the open binary file it is given.
         durable: flush and ``fsync`` the file before the rename.
     """
-    given = path  # errors name it, as the caller did
-    if os.path.islink(path):  # through a link: the file it names, the link kept
-        path = pathlib.Path(os.path.realpath(path))
     tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
     try:
         with open(tmp, "xb") as f:
@@ -71,7 +68,7 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
                 os.fsync(f.fileno())
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        _name(e, given)
+        _name(e, path)
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -80,7 +77,7 @@ def write_whole(path: pathlib.Path, write: Callable[[BinaryIO], object], *, dura
         os.replace(tmp, path)  # fails where path is a folder
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        _name(e, given)
+        _name(e, path)
         raise
     except BaseException:
         tmp.unlink(missing_ok=True)

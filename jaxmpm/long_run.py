@@ -232,8 +232,8 @@ def _write_npz(path: pathlib.Path, arrays: dict) -> None:
     that fails (a full disk) removes its temporary file and raises the ``OSError``.
     """
     write_whole(path, lambda f: np.savez(f, **arrays), durable=True)
-    try:  # make the rename itself durable (in the folder of the file a link names)
-        fd = os.open(os.path.dirname(os.path.realpath(path)), os.O_RDONLY)
+    try:  # make the rename itself durable
+        fd = os.open(path.parent, os.O_RDONLY)
         try:
             os.fsync(fd)
         finally:
@@ -1348,7 +1348,7 @@ def resume(
 
     Args:
         path: the saved run.
-        out: where to keep writing (default: ``path`` itself).
+        out: where to keep writing (default: ``path`` itself; for a link, the file it names).
         progress: as for ``run``.
         throw: as for ``run``.
         overwrite: replace ``out`` if it is another file that exists (``path`` itself is always
@@ -1402,7 +1402,9 @@ def resume_timed(
         raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
     path = pathlib.Path(path)
     _check_file(path)
-    out = _check_out(path if out is None else out, overwrite=overwrite, own=path)
+    if out is None:  # the run goes on in its file: through a link, the file it names (the link kept)
+        out = pathlib.Path(os.path.realpath(path)) if path.is_symlink() else path
+    out = _check_out(out, overwrite=overwrite, own=path)
     sol, meta, (model, dt_arr, saveat, state, rec) = _load(path)
     return *_drive(
         model,

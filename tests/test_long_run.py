@@ -463,9 +463,9 @@ def test_a_scene_of_parts_runs_in_chunks_when_nothing_is_saved(tmp_path):
         long_run.run(scene, jm.CPDI(), dt=1e-3, steps=20, chunk=5, progress=False, out=tmp_path / "a.npz")
 
 
-def test_a_checkpoint_through_a_link_is_written_to_the_file_it_names(tmp_path):
-    """A link to a checkpoint stays a link: resuming or overwriting through it writes the file it
-    points to."""
+def test_a_checkpoint_resumed_through_a_link_goes_on_in_the_file_it_names(tmp_path):
+    """A link to a checkpoint stays a link: resuming through it continues the file it points to (a
+    file written to a link's name otherwise replaces the link, never what it points to)."""
     scene = jm.GasExpansion(cells=4)
     (tmp_path / "data").mkdir()
     target = tmp_path / "data" / "run.npz"
