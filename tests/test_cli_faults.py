@@ -465,6 +465,19 @@ def test_a_study_keeps_the_files_of_others_in_its_folder(capsys, tmp_path, monke
     assert (fresh / ".jaxmpm-study").read_text() == "talk\n" and len(ran) == 3
 
 
+def test_a_file_named_as_the_study_mark_that_names_no_study_is_the_users(capsys, tmp_path, monkeypatch):
+    """A ``.jaxmpm-study`` that does not name a study is a file of the user's, kept as any other."""
+    import jaxmpm.studies.talk as talk
+
+    monkeypatch.setattr(talk, "main", lambda out, small: None)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / ".jaxmpm-study").write_text("my own notes about this folder\n")
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(mine)], "--out")
+    assert "already holds files that `jaxmpm study talk` did not write (.jaxmpm-study)" in line
+    assert (mine / ".jaxmpm-study").read_text() == "my own notes about this folder\n"
+
+
 def test_a_study_that_draws_figures_checks_for_matplotlib_first(capsys, tmp_path, monkeypatch):
     import jaxmpm.studies.convergence as convergence
     import jaxmpm.studies.talk as talk

@@ -111,8 +111,10 @@ def _claim(folder, name: str, outputs, overwrite: bool) -> None:
     path = writable_folder(folder, "--out")
     mark = path / MARK
     owner = _owner(mark)
+    if owner not in STUDIES:  # a file of that name that is not a study's mark is the user's
+        owner = None
     try:
-        names = sorted(p.name for p in path.iterdir() if p.name != MARK)
+        names = sorted(p.name for p in path.iterdir() if p.name != MARK or (owner is None and p.exists()))
     except OSError as e:
         raise UsageError(f"--out {folder}: cannot list the folder ({e.strerror or e})") from None
     folders = [n for n in names if n in outputs and (path / n).is_dir()]
