@@ -95,3 +95,30 @@ def test_a_run_that_breaks_down_has_no_numbers():
     peak = detonation.peak_row(scene, max_steps=3)
     assert peak["failure"] is not None and peak["peak"] is None and peak["excess"] is None
     assert detonation.observed_orders([2.0, 1.0, 0.5], [0.4, None, 0.1]) == (pytest.approx(1.0), None)
+
+
+def test_the_gurney_table_says_the_plate_still_gains_only_where_its_runs_show_it():
+    """The sentence under the Gurney table is a reading of its numbers: with no run that finished, or
+    one whose plate slowed at the last time, it is not written."""
+    times = (2e-5, 4e-5)
+
+    def row(v1, v2, failure=None):
+        return {
+            "interpolator": "cpdi",
+            "cells": 100,
+            "gurney": 1358.0,
+            "mass_ratio": 1.137,
+            "failure": failure,
+            "status": "x",
+            "v_2e-05": v1,
+            "v_4e-05": v2,
+        }
+
+    def text(rows):
+        result = {"gurney": rows, "settings": {"gurney": {"times": times}}}
+        return "\n".join(detonation._gurney_markdown(result))
+
+    gains = "The plate still gains a little at the last time"
+    assert gains in text([row(1300.0, 1350.0)])
+    assert gains not in text([row(None, None, failure="broke")])
+    assert gains not in text([row(1300.0, 1350.0), row(1300.0, 1290.0)])

@@ -765,11 +765,13 @@ def _gurney_markdown(result: dict) -> list[str]:
         lines.append(
             f"| {r['interpolator']} | {r['cells']} | {status_cell(r)} | {cells} | {number(ratio, '.4f')} |"
         )
-    lines += [
-        "",
-        "The plate still gains a little at the last time: the products behind it keep expanding, and "
-        "Gurney's formula is their full expansion.",
-    ]
+    finished = [r for r in rows if r[f"v_{times[-1]:g}"] is not None and r[f"v_{times[-2]:g}"] is not None]
+    if finished and all(r[f"v_{times[-1]:g}"] > r[f"v_{times[-2]:g}"] for r in finished):
+        lines += [
+            "",
+            "The plate still gains a little at the last time: the products behind it keep expanding, and "
+            "Gurney's formula is their full expansion.",
+        ]
     return lines
 
 
