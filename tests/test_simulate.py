@@ -423,3 +423,22 @@ def test_the_save_times_are_the_saved_states_own_times():
     assert np.asarray(sol.ts).tobytes() == expected.tobytes() and float(sol.ts[-1]) == float(sol.state.t)
     chunked = long_run.run(scene, jm.SPQ(), dt=1e-5, steps=60, chunk=6, saveat=saveat, progress=False)
     assert np.asarray(chunked.ts).tobytes() == expected.tobytes()
+
+
+@pytest.mark.parametrize(
+    "name, cells", [("spq", 0), ("gimp", 0), ("cpgimp", 0), ("cpdi", 0), ("cpdi2", 0), ("mpq", 1)]
+)
+@pytest.mark.parametrize("dim", [1, 2])
+def test_a_stress_free_body_moving_rigidly_stays_rigid(name, cells, dim):
+    """A NeoHookean box given a uniform velocity keeps it, with F = I, to round-off (MPQ with an
+    artificial cell: without one its leading corners lag, docs/limitations.md)."""
+    from jaxmpm.geometry import Box
+
+    part = jm.Region(
+        Box((0.0,) * dim, (10.0,) * dim), jm.NeoHookean(lam=1e6, mu=1e6), 1000.0, (10.0,) + (0.0,) * (dim - 1)
+    )
+    scene = jm.Bodies(parts=(part,), cells=10, h=0.1, ppc=2, pad=4, dim=dim)
+    sol = jm.simulate(scene, jm.INTERPOLATORS[name](), dt=2e-4, steps=30, artificial_cells=cells)
+    v = np.asarray(sol.state.v)
+    assert np.abs(v[:, 0] - 10.0).max() < 1e-10 and np.abs(v[:, 1:]).max(initial=0.0) < 1e-10
+    assert np.abs(np.asarray(sol.state.F) - np.eye(dim)).max() < 1e-12
