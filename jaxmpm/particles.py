@@ -29,6 +29,9 @@ class Body(eqx.Module):
             one region.
         inert: how many of the particles, the last ones, are inert copies that pad the run
             (``jaxmpm._step.pad_particles``; static): 0 for a body as seeded.
+        chain: the body is a 1D chain in order, particle ``p`` having corners ``p`` and ``p + 1``
+            (static; ``seed_bar`` and ``seed_box`` in 1D set it): its corners are read as slices.
+            ``False`` (the default) reads them through ``corner_ids``, for any order.
     """
 
     X: Float[Array, "n dim"]
@@ -40,6 +43,7 @@ class Body(eqx.Module):
     boundary: Bool[Array, " n"]
     region: Int[Array, " n"] | None = None
     inert: int = eqx.field(static=True, default=0)
+    chain: bool = eqx.field(static=True, default=False)
 
     @property
     def n(self) -> int:
@@ -49,10 +53,9 @@ class Body(eqx.Module):
     def particle_corners(self, corners: Float[Array, "nc dim"]) -> Float[Array, "n corners dim"]:
         """Each particle's ``2^dim`` corners, ``corners[corner_ids]``.
 
-        A 1D body of one piece is a chain (``seed_bar``: particle ``p`` has corners ``p`` and
-        ``p + 1``, ``n + 1`` corners), read as two shifted slices rather than a gather, which the step
-        does several times a step. A body of several pieces (``n + pieces`` corners), or one padded
-        with inert copies, is gathered.
+        A 1D chain (``chain``: particle ``p`` has corners ``p`` and ``p + 1``, ``n + 1`` corners) is
+        read as two shifted slices rather than a gather, which the step does several times a step.
+        Any other body (several pieces, another order of the particles, inert copies) is gathered.
 
         Args:
             corners: the body's corners, one row per corner of ``X_corners``.
@@ -60,7 +63,7 @@ class Body(eqx.Module):
         Returns:
             The corners of each particle, in the order of ``_util.corner_signs``.
         """
-        if self.X.shape[1] == 1 and self.inert == 0 and corners.shape[0] == self.n + 1:
+        if self.chain and self.inert == 0 and corners.shape[0] == self.n + 1:
             return jnp.stack([corners[:-1], corners[1:]], axis=1)
         return corners[self.corner_ids]
 
@@ -121,6 +124,7 @@ def seed_box(cells: tuple[int, ...], ppc: int, h: Float[Array, ""], rho0: Float[
         X_corners=X_corners,
         corner_ids=jnp.asarray(ids),
         boundary=jnp.asarray(boundary),
+        chain=d == 1,
     )
 
 

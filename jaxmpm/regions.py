@@ -242,6 +242,7 @@ def seed_regions(lay: Layout, h: Float[Array, ""], rho0: Float[Array, " regions"
         corner_ids=jnp.asarray(ids),
         boundary=jnp.asarray(boundary),
         region=jnp.asarray(lay.region),
+        chain=d == 1 and np.array_equal(ids, np.arange(n)[:, None] + np.arange(2)[None, :]),
     )
 
 
