@@ -231,6 +231,18 @@ def test_output_into_a_closed_pipe_is_quiet():
     assert p.stderr == "" and p.returncode in (0, 141)
 
 
+@pytest.mark.slow
+def test_output_with_standard_output_closed_is_one_line_and_status_74():
+    """``jaxmpm scenes >&-``: the process has no standard output (Python's ``sys.stdout`` is None);
+    what the command writes there cannot be written, said in one line, no traceback."""
+    p = subprocess.run(
+        ["bash", "-c", 'exec "$0" -m jaxmpm.cli scenes >&-', sys.executable],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert p.returncode == 74 and p.stderr == "jaxmpm: error: cannot write standard output: it is closed\n"
+
+
 @pytest.mark.parametrize(
     "params",
     [["cells=1000000000"], ["dim=2", "cells=20000"], ["dim=3", "cells=200"]],

@@ -13,6 +13,7 @@ fails (one line naming it). Each failure is one line on stderr, never a tracebac
 """
 
 import contextlib
+import errno
 import os
 import signal
 import sys
@@ -67,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     if main_thread:
         InterruptLatch.install()  # a Ctrl-C that Python ignores (in a gc callback) is not lost
     stdout = sys.stdout
-    sys.stdout = _Output(stdout)
+    sys.stdout = _Output(_Closed() if stdout is None else stdout)
     try:
         return _dispatch(argv)
     finally:
@@ -140,6 +141,23 @@ class _Output:
 
     def __getattr__(self, name):
         return getattr(self._stream, name)
+
+
+class _Closed:
+    """Standard output where the process has none (``jaxmpm ... >&-``: Python's ``sys.stdout`` is
+    ``None``): what the command writes there cannot be written, exit status 74."""
+
+    def write(self, text):
+        raise OSError(errno.EBADF, "it is closed")
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
+
+    def fileno(self):
+        raise OSError(errno.EBADF, "it is closed")
 
 
 def _discard_stdout() -> None:
