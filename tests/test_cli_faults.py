@@ -296,6 +296,22 @@ def test_a_run_refused_after_its_vtk_folder_was_made_leaves_no_folder(capsys, tm
     assert main(small + ["--vtk", str(frames)] + too_many) == 2
     capsys.readouterr()
     assert frames.is_dir()
+    # a run refused for its memory once the folder and its missing parents are made removes them all,
+    # and none that was there before
+    huge = [
+        "run",
+        "gas-expansion",
+        "cells=999999999",
+        "--interpolator",
+        "mpq",
+        "--dt",
+        "1e-5",
+        "--steps",
+        "4",
+    ]
+    assert main(huge + ["--vtk", str(frames / "a" / "b" / "c")]) == 2
+    assert "of memory" in one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == [frames] and list(frames.iterdir()) == []
 
 
 def test_vtk_refuses_a_folder_holding_a_legacy_vtk_file_of_the_users(capsys, tmp_path):

@@ -209,10 +209,11 @@ def command(args) -> int:
             _check_out(args.out, overwrite=args.overwrite, option="--out")
         except ValueError as e:
             raise as_option(e) from None
-    vtk_made = args.vtk is not None and not pathlib.Path(args.vtk).exists()
+    made = [] if args.vtk is None else _missing(pathlib.Path(args.vtk))  # what --vtk will make
+    vtk_made = bool(made)
     if args.vtk is not None:
         _check_vtk_folder(args.vtk, args.overwrite)
-    with _removed_on_failure(args.vtk if vtk_made else None):  # a refused or broken run leaves none
+    with _removed_on_failure(made):  # a refused or broken run leaves none
         progress = False if args.no_progress or not first else None
         try:
             if args.out is not None:
@@ -269,17 +270,28 @@ def command(args) -> int:
 
 
 @contextlib.contextmanager
-def _removed_on_failure(folder):
-    """Remove ``folder`` (one this command made, or ``None``) when the command fails while it is still
-    empty, so that a run refused after the folder check (``--devices`` beyond the devices there, say)
-    leaves nothing behind; a folder with files in it stays."""
+def _removed_on_failure(folders):
+    """Remove ``folders`` (the ones this command makes, deepest first) when the command fails while
+    they are still empty, so that a run refused after the folder check (``--devices`` beyond the
+    devices there, say) leaves nothing behind; a folder with files in it stays."""
     try:
         yield
     except BaseException:
-        if folder is not None:
-            with contextlib.suppress(OSError):  # only if empty
-                pathlib.Path(folder).rmdir()
+        for folder in folders:
+            try:
+                folder.rmdir()  # only if empty
+            except OSError:
+                break
         raise
+
+
+def _missing(folder: pathlib.Path) -> list[pathlib.Path]:
+    """The folders that making ``folder`` makes: it and each missing parent, deepest first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
 
 
 def _plain(scene, interp, timing, settings, progress):
