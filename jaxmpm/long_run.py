@@ -797,6 +797,12 @@ def _check_out(
         raise ValueError(f"out must be a file path (a str or os.PathLike), got {out!r}")
     path = pathlib.Path(out)
     named = f"out={path}" if option is None else f"{option} {path}"
+    if isinstance(out, str) and out.endswith(("/", os.sep)):  # (a Path drops the slash)
+        named = f"out={out}" if option is None else f"{option} {out}"
+        raise ValueError(
+            f"{named} ends with a slash, which names a folder, not a file; give a file to write the "
+            f"run to, e.g. {path / 'run.npz'}"
+        )
     if path.is_dir():
         raise ValueError(
             f"{named} is a folder, not a file; give a file to write the run to, e.g. {path / 'run.npz'}"

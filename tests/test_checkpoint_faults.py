@@ -446,6 +446,16 @@ def test_out_is_a_folder(tmp_path, nothing_compiles):
         long_run.run(SCENE, jm.SPQ(), out=tmp_path, **KW)
 
 
+def test_out_ending_with_a_slash_names_a_folder(tmp_path, capsys, nothing_compiles):
+    """``o/zz/`` names a folder even where none exists: it is refused, not written as a file ``o/zz``."""
+    with pytest.raises(ValueError, match="ends with a slash, which names a folder, not a file"):
+        long_run.run(SCENE, jm.SPQ(), out=f"{tmp_path}/zz/", **KW)
+    argv = ["run", "gas-expansion", "cells=2", "--interpolator", "mpq", "--dt", "1e-5", "--steps", "2"]
+    assert main(argv + ["--out", f"{tmp_path}/zz/"]) == 2
+    assert f"--out {tmp_path}/zz/ ends with a slash" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_out_in_a_missing_folder(tmp_path, nothing_compiles):
     out = tmp_path / "no" / "such" / "run.npz"
     with pytest.raises(ValueError, match=r"the folder .*such does not exist"):
