@@ -324,6 +324,29 @@ def test_the_results_are_printed_before_the_files_are_written(tmp_path, capsys, 
     assert "NumPy" in cap.out and "No space left on device" in cap.err
 
 
+@pytest.mark.parametrize("as_json", [False, True])
+def test_the_files_are_written_when_the_reader_of_the_results_went_away(
+    as_json, tmp_path, capsys, monkeypatch, replayed
+):
+    """``jaxmpm bench --out DIR | true``: the reader is gone before the results are printed; the files
+    hold them all the same, and the status is 141 (silent)."""
+
+    class Gone:
+        def write(self, text):
+            raise BrokenPipeError(errno.EPIPE, "Broken pipe")
+
+        def flush(self):
+            raise BrokenPipeError(errno.EPIPE, "Broken pipe")
+
+        def fileno(self):  # no descriptor to point at the null device
+            raise OSError(errno.EBADF, "no descriptor")
+
+    monkeypatch.setattr(cli.sys, "stdout", Gone())
+    assert cli.main(argv(*(["--json"] if as_json else []), out=str(tmp_path))) == 141
+    assert capsys.readouterr().err.count("jaxmpm: error") == 0
+    assert set(files(tmp_path)) == set(bench.FILES)
+
+
 # --- Breakdowns, throughput and agreement ------------------------------------------------------------
 
 

@@ -292,11 +292,21 @@ def command(args) -> int:
     except bench.WorkerError as e:
         print(f"jaxmpm: error: {e}", file=sys.stderr)
         return 1
-    # the results first: a write that fails (a full disk) does not lose the measurements
-    if args.json:
-        print_json(result)
-    else:
-        print(bench.table(result))
+    # the results first: a write that fails (a full disk) does not lose the measurements; and the
+    # files whatever becomes of standard output (a reader that went away: written, then status 141)
+    try:
+        if args.json:
+            print_json(result)
+        else:
+            print(bench.table(result))
+        sys.stdout.flush()
+    except BrokenPipeError:
+        if args.out is not None:
+            try:
+                bench.write(result, args.out, overwrite=args.overwrite)
+            except OSError as e:
+                raise CannotWrite(f"--out {args.out}", e) from None
+        raise
     if args.out is not None:
         try:
             paths = bench.write(result, args.out, overwrite=args.overwrite)
