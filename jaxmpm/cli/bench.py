@@ -294,26 +294,24 @@ def command(args) -> int:
         return 1
     # the results first: a write that fails (a full disk) does not lose the measurements; and the
     # files whatever becomes of standard output (a reader that went away: written, then status 141)
+    gone = None
     try:
         if args.json:
             print_json(result)
         else:
             print(bench.table(result))
         sys.stdout.flush()
-    except BrokenPipeError:
-        if args.out is not None:
-            try:
-                bench.write(result, args.out, overwrite=args.overwrite)
-            except OSError as e:
-                raise CannotWrite(f"--out {args.out}", e) from None
-        raise
+    except BrokenPipeError as e:
+        gone = e
     if args.out is not None:
         try:
             paths = bench.write(result, args.out, overwrite=args.overwrite)
         except OSError as e:
             raise CannotWrite(f"--out {args.out}", e) from None
-        if not args.json:
+        if not args.json and gone is None:
             print("wrote " + ", ".join(str(p) for p in paths))
+    if gone is not None:
+        raise gone
     bad = result.get("disagreement")
     if bad:  # after the results are out: they are kept, but their throughputs compare different work
         said = "; ".join(
