@@ -33,6 +33,7 @@ from . import status as st_bits
 from ._checks import any_traced, brief, check_keywords, is_real
 from ._simulate import Solution, as_devices, checkpoint_block, prepare, run_scan, simulate
 from ._step import check_scene
+from .calibrate import unused
 from .interpolators import AbstractInterpolator
 from .long_run import computed
 from .scenes import AbstractScene
@@ -144,7 +145,8 @@ class Ensemble:
 
 def variable_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str, ...]:
     """The scene's parameters that ``ensemble``'s ``vary`` may name (besides the run's ``RUN_NAMES``):
-    its continuous parameters but the static ones (``static_parameters``).
+    its continuous parameters but the static ones (``static_parameters``) and those its run does not
+    read (``jaxmpm.calibrate.unused``: varying them, every member would run the same).
 
     Args:
         scene: a scene or a scene class.
@@ -152,8 +154,8 @@ def variable_parameters(scene: AbstractScene | type[AbstractScene]) -> tuple[str
     Returns:
         The names, in the scene's order.
     """
-    static = static_parameters(scene)
-    return tuple(n for n in continuous_parameters(scene) if n not in static and n != "dt")
+    skip = {*static_parameters(scene), *unused(scene), "dt"}
+    return tuple(n for n in continuous_parameters(scene) if n not in skip)
 
 
 RUN_NAMES = ("dt", "t_end", "cfl")
@@ -189,12 +191,19 @@ def _with(scene: AbstractScene, values: dict) -> AbstractScene:
 
 def _check_vary_names(scene: AbstractScene, vary: Mapping) -> None:
     """Each name of ``vary`` one that an ensemble can vary: the run's ``RUN_NAMES`` or one of the
-    scene's ``variable_parameters``; the others refused by name, with the names that can vary."""
+    scene's ``variable_parameters``; the others refused by name (the static ones, those the run does
+    not read, the structural ones), with the names that can vary."""
     check_scene(scene)
     allowed = variable_parameters(scene)
     can = f"parameters that can vary: {', '.join(allowed + RUN_NAMES)}"
     structural = [k for k, v in type(scene).parameters().items() if not isinstance(v, float)]
+    idle = unused(scene)
     for k in vary:
+        if k in idle:
+            raise ValueError(
+                f"vary names {k!r}, which the run does not use: {idle[k]}; every member would run "
+                f"the same; {can}"
+            )
         if k in RUN_NAMES or k in allowed:
             continue
         if k in static_parameters(scene):
@@ -275,7 +284,8 @@ def ensemble(
 
     Raises:
         ValueError: bad ``vary`` (not a dict, unknown, structural or static names, a name the run
-            does not use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``; values that are not
+            does not use: ``t_end`` or ``cfl`` with fixed steps, ``dt`` with ``t_end``, a constant
+            the scene's run does not read, ``jaxmpm.calibrate.unused``; values that are not
             real numbers, arrays of different lengths, values that are not finite or that the
             parameter does not allow, a member whose values together the scene refuses, named by
             its index), bad run arguments, or more members than the device's memory holds

@@ -107,9 +107,53 @@ def test_ensemble_refuses_a_static_parameter_by_name_and_lists_what_can_vary(cap
     line = usage(capsys, argv, f"--vary: {name} is static in {scene}")
     listed = line.split("parameters that can vary: ")[1].split(", ")
     assert name not in listed
-    assert set(listed) == set(ensemble_module.variable_parameters(jm.SCENES[scene]))
+    values = dict(p.split("=") for p in params)  # the scene of the command line (gurney-slab: compb)
+    sc = jm.SCENES[scene](**{k: int(v) for k, v in values.items()})
+    assert set(listed) == set(ensemble_module.variable_parameters(sc))
     with pytest.raises(ValueError, match=rf"vary names '{name}', a static parameter of {scene}"):
         jm.ensemble(jm.SCENES[scene](cells=20), jm.CPDI(), {name: [0.4, 0.6]}, dt=1e-8, steps=1)
+
+
+@pytest.mark.parametrize(
+    "explosive, name, why",
+    [
+        ("gamma-law", "A", "the run of explosive=gamma-law does not use it"),
+        ("compb", "D", "the run of explosive=compb does not use it"),
+        ("jwl", "sqrt_2E", "it is the constant of Gurney's formula"),
+    ],
+)
+def test_ensemble_refuses_a_constant_the_run_does_not_use(capsys, explosive, name, why):
+    """Every member would run the same: the run does not read the constant (calibrate refuses to fit
+    it for the same reason)."""
+    argv = ["ensemble", "gurney-slab", "cells=20", "pad=80", f"explosive={explosive}"]
+    line = usage(capsys, [*argv, "--vary", f"{name}=1:2", "--members", "2", *SHORT], f"--vary: {name}")
+    assert why in line
+    listed = line.split("parameters that can vary: ")[1].split(", ")
+    scene = jm.GurneySlab(cells=20, pad=80, explosive=explosive)
+    assert set(listed) == set(ensemble_module.variable_parameters(scene))
+    assert not set(listed) & {"split", *cal.unused(scene)} and "L" in listed
+    with pytest.raises(ValueError, match=rf"vary names '{name}', which the run does not use: {why}"):
+        jm.ensemble(scene, jm.CPDI(), {name: [1.0, 2.0]}, dt=1e-9, steps=1)
+
+
+def test_ensemble_from_a_fit_refuses_a_constant_the_run_does_not_use(capsys, tmp_path):
+    fit = tmp_path / "fit.json"  # a fit of the JWL products' A, drawn from for compb's own products
+    one = {"A": 1.0}
+    fit.write_text(
+        json.dumps(dict(scene="gurney-slab", fitted=one, offsets=one, covariance_theta={"A": one}))
+    )
+    argv = [
+        "ensemble",
+        "gurney-slab",
+        "cells=20",
+        "pad=80",
+        "explosive=compb",
+        "--from-fit",
+        str(fit),
+        "--members",
+        "2",
+    ]
+    usage(capsys, argv, f"--from-fit: {fit} fits A, which cannot vary this run: the run of explosive=compb")
 
 
 def test_ensemble_lists_no_static_parameter_for_an_unknown_name(capsys):

@@ -92,6 +92,13 @@ def command(args) -> int:
                 f"compiled), so one compiled ensemble cannot vary it: give it as a scene parameter "
                 f"({k}=...) and run an ensemble per value; parameters that can vary: {', '.join(varying)}"
             )
+    idle = jm.calibrate.unused(scene)
+    for k in _assign.names(args.vary or []):
+        if k in idle:
+            raise UsageError(
+                f"--vary: {k} cannot vary the run: {idle[k]}; every member would run the same; "
+                f"parameters that can vary: {', '.join(varying)}"
+            )
     ranges = _assign.ranges(args.vary or [], varying)
     fit = read_fit(args.from_fit, scene, varying) if args.from_fit else None
     if not ranges and fit is None:
@@ -347,7 +354,10 @@ def read_fit(path: str, scene, allowed) -> dict:
     names = list(obj["fitted"])
     if not names:
         raise UsageError(f"--from-fit: {path} fits no parameter (its fitted is empty)")
+    idle = jm.calibrate.unused(scene)
     for k in names:
+        if k in idle:
+            raise UsageError(f"--from-fit: {path} fits {k}, which cannot vary this run: {idle[k]}")
         if k not in allowed:
             raise UsageError(f"--from-fit: {k!r} is not a continuous parameter of {scene.name}")
     try:
