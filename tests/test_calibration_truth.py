@@ -271,6 +271,8 @@ def test_cli_sizes_the_grid_for_the_data_and_recovers_the_constants(reference, t
     assert out["correlation"]["P0"]["P0"] == pytest.approx(1.0, rel=1e-14)
     assert out["condition"] > 1 and out["sigma"] > 0 and out["noise"] is None
     assert set(out) >= {"fitted", "loss", "iterations", "wall_s", "covariance", "covariance_theta", "offsets"}
+    # the scene's other parameters, as the fit ran them: what a rerun needs
+    assert out["fixed"] == {"p_atm": 1.0, "h": 0.03125, "rho0": 1.0, "cells": 32, "ppc": 2, "pad": out["pad"]}
     # with the grid of the default pad, the data are out of reach: refused before any run, naming pad
     assert main(argv[:6] + ["pad=96"] + argv[6:]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -338,6 +340,7 @@ def test_cli_blocked_fit_with_json_prints_why_and_an_ensemble_refuses_it(tmp_pat
     assert out["fitted"] is None and cap.err == f"jaxmpm: {out['error']}\n"
     assert "every step toward a lower loss is a run that breaks down" in out["error"]
     assert out["starts"] == [{"gamma": 1.82, "P0": 2.1e5}] and out["pad"] == 52 and out["dt"] == dt
+    assert out["fixed"] == {"p_atm": 1e5, "h": 0.0625, "rho0": 1.0, "cells": 16, "ppc": 2, "pad": 52}
     fit = tmp_path / "fit.json"
     fit.write_text(cap.out)
     assert main(["ensemble", "gas-slab", "--from-fit", str(fit), "--members", "4"]) == 2

@@ -411,7 +411,7 @@ def command(args) -> int:
                 dict(
                     fitted=None,
                     error=str(e),
-                    **_settings(args, dt, scene, viscosity),
+                    **_settings(args, dt, scene, viscosity, names),
                     starts=_start_values(scene, names, starts),
                 )
             )
@@ -430,7 +430,7 @@ def command(args) -> int:
         loss=fit.loss,
         iterations=fit.iterations,
         wall_s=fit.wall_s,
-        **_settings(args, dt, scene, viscosity),
+        **_settings(args, dt, scene, viscosity, names),
         start=start_values[fit.best_start],
         starts=start_values,
         best_start=fit.best_start,
@@ -469,8 +469,9 @@ def command(args) -> int:
     return 0
 
 
-def _settings(args, dt, scene, viscosity) -> dict:
-    """The fit's settings, as ``--json`` reports them: scene, interpolator, method, dt, pad, viscosity."""
+def _settings(args, dt, scene, viscosity, names) -> dict:
+    """The fit's settings, as ``--json`` reports them: scene, interpolator, method, dt, pad, viscosity,
+    and ``fixed``, the scene's parameters other than the fitted ``names``, as the fit ran them."""
     return dict(
         scene=args.scene,
         interpolator=args.interpolator,
@@ -478,7 +479,13 @@ def _settings(args, dt, scene, viscosity) -> dict:
         dt=dt,
         pad=scene.pad,
         viscosity=None if viscosity is None else viscosity.coefficients(),
+        fixed={k: _plain(v) for k, v in scene.parameter_values().items() if k not in names},
     )
+
+
+def _plain(v):
+    """A scene parameter's value for JSON: strings, booleans and integers as they are, numbers as floats."""
+    return v if isinstance(v, str | bool | int) else float(v)
 
 
 def _start_values(scene, names, starts) -> list[dict]:
