@@ -94,6 +94,7 @@ from ._util import host
 from .interpolators import AbstractInterpolator
 from .long_run import computed
 from .scenes import AbstractScene
+from .scenes.detonation import Detonation
 from .scenes.gas_slab import GasSlab, free_surface, pad_for
 from .scenes.gurney import AbstractGurney, GurneySlab
 from .sensitivity import check_names, continuous_parameters, static_parameters
@@ -157,8 +158,8 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
     The Gurney scenes' ``sqrt_2E`` is the constant of Gurney's formula (``gurney_velocity``), never
     of the run. With ``explosive="gamma-law"`` the run does not use the JWL constants ``A, B, R1, R2,
     w``; with ``"jwl"`` not ``gamma``; with a row of ``jaxmpm.explosives.EXPLOSIVES`` (``"compb"``,
-    ...) none of ``D, gamma, rho0, A, B, R1, R2, w``: the row has its own. Other scenes use every
-    continuous parameter.
+    ...) none of ``D, gamma, rho0, A, B, R1, R2, w``: the row has its own. A ``Detonation`` of such a
+    row does not use ``D, gamma, rho0``. Other scenes use every continuous parameter.
 
     Args:
         scene: the scene, or its class (then only what no run of it uses: ``sqrt_2E``).
@@ -167,6 +168,15 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
         Name to a clause saying why (empty where the run uses every continuous parameter).
     """
     cls = scene if isinstance(scene, type) else type(scene)
+    if issubclass(cls, Detonation):
+        if isinstance(scene, type) or scene.explosive == "gamma-law":
+            return {}
+        why = (
+            f"the run of explosive={scene.explosive} does not use it: the products are that row of "
+            "jm.explosives.EXPLOSIVES, with its own detonation speed, density and constants "
+            "(explosive=gamma-law takes D, gamma and rho0 from the scene)"
+        )
+        return dict.fromkeys(("D", "gamma", "rho0"), why)
     if not issubclass(cls, AbstractGurney):
         return {}
     out = {"sqrt_2E": "it is the constant of Gurney's formula (gurney_velocity), not of the run"}

@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import usage
@@ -134,6 +135,21 @@ def test_ensemble_refuses_a_constant_the_run_does_not_use(capsys, explosive, nam
     assert not set(listed) & {"split", *cal.unused(scene)} and "L" in listed
     with pytest.raises(ValueError, match=rf"vary names '{name}', which the run does not use: {why}"):
         jm.ensemble(scene, jm.CPDI(), {name: [1.0, 2.0]}, dt=1e-9, steps=1)
+
+
+def test_a_detonation_of_a_named_explosive_does_not_use_the_gamma_laws_constants():
+    """A JWL row brings its own detonation speed, density and products: D, gamma and rho0 do not
+    change the run, so an ensemble refuses them (the gamma law's scene varies them)."""
+    row = jm.Detonation(explosive="tnt", cells=8)
+    assert set(cal.unused(row)) == {"D", "gamma", "rho0"} and cal.unused(jm.Detonation(cells=8)) == {}
+    assert set(ensemble_module.variable_parameters(row)) == {"L", "burn_width"}
+    with pytest.raises(
+        ValueError, match="vary names 'D', which the run does not use: the run of explosive=tnt"
+    ):
+        jm.ensemble(row, jm.MPQ(), {"D": [5000.0, 9000.0]}, dt=1e-8, steps=3)
+    ens = jm.ensemble(jm.Detonation(cells=8), jm.MPQ(), {"D": [7000.0, 9000.0]}, dt=2e-7, steps=20)
+    assert ens.status.tolist() == [0, 0]
+    assert float(jnp.max(jnp.abs(ens.solution.state.sigma[0] - ens.solution.state.sigma[1]))) > 0
 
 
 def test_ensemble_from_a_fit_refuses_a_constant_the_run_does_not_use(capsys, tmp_path):
