@@ -15,7 +15,7 @@ from jaxtyping import Array, Float, Int
 
 from . import _memory
 from . import status as st_bits
-from ._checks import brief, check_int, check_keywords, check_positive, check_scalar, is_concrete
+from ._checks import brief, check_int, check_keywords, check_positive, check_scalar, is_concrete, python_int
 from ._step import (
     Model,
     Setup,
@@ -67,15 +67,21 @@ class SaveAt(eqx.Module):
 
     Raises:
         ValueError: ``every`` is not ``None`` or an integer >= 1, or ``fields`` is not a non-empty
-            tuple (or list) of names among ``STATE_FIELDS``.
+            tuple (or list) of names among ``STATE_FIELDS``, or ``fields`` other than the default
+            are given without ``every`` (nothing would be kept).
     """
 
-    every: int | None = eqx.field(static=True, default=None)
+    every: int | None = eqx.field(static=True, default=None, converter=python_int)
     fields: tuple[str, ...] = eqx.field(static=True, default=("x", "v", "F", "sigma"))
 
     def __check_init__(self):
         if self.every is not None:
             check_int("SaveAt.every", self.every, 1)
+        elif self.fields != SaveAt.fields:
+            raise ValueError(
+                f"SaveAt.fields={self.fields!r} without every keeps no history: give every=k to keep "
+                "them every k steps"
+            )
         if isinstance(self.fields, str) or not isinstance(self.fields, tuple | list):
             raise ValueError(
                 f"SaveAt.fields must be a tuple of names among {STATE_FIELDS}, got {self.fields!r}"

@@ -376,3 +376,26 @@ def test_a_manufactured_field_must_be_a_function():
         ValueError, match=r"displacement_fn must be a function u\(scene, X, t\) -> u, or None, got int 3"
     ):
         _raw(jm.Manufactured, displacement_fn=3).__check_init__()
+
+
+@pytest.mark.parametrize("kind", [np.uint8, np.int8, np.int32, np.int64])
+def test_numpy_integers_are_the_python_integers_they_hold(kind):
+    """A scene's static integers given as NumPy integers are kept as Python ints: the grid's sizes
+    then never wrap around in the NumPy type (200 + 2 * 40 + 1 nodes in uint8 would be 25)."""
+    scene = jm.GasExpansion(cells=kind(100), ppc=kind(2), pad=kind(40))
+    assert all(type(getattr(scene, k)) is int for k in ("cells", "ppc", "pad", "dim"))
+    assert scene.grid().n_nodes == 181 and scene == jm.GasExpansion(cells=100, ppc=2, pad=40)
+    slab = jm.GurneySlab(cells=kind(4), ppc=kind(1), pad=kind(4), strength=np.bool_(True))
+    assert type(slab.cells) is int and type(slab.strength) is bool
+    saveat = jm.SaveAt(every=kind(2))
+    assert type(saveat.every) is int and saveat == jm.SaveAt(every=2)
+    # the memory estimate of a 3D run of 1000^3 cells, in int32 too: 81 TB, refused
+    big = jm.Model(jm.GasExpansion(dim=3, cells=np.int32(1000)), jm.MPQ(), jm.FLIP())
+    with pytest.raises(ValueError, match="memory"):
+        jm._memory.check_run(big, 1, jm.SaveAt())
+
+
+def test_saved_fields_without_every_are_refused():
+    """SaveAt(fields=...) without every would keep nothing: the fields are refused, not ignored."""
+    _one_line(lambda: jm.SaveAt(fields=("x", "F")), r"SaveAt.fields=\('x', 'F'\) without every keeps no history")
+    assert jm.SaveAt().every is None  # the default: no history

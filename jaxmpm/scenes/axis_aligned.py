@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_nonnegative, check_positive
+from .._checks import check_finite, check_nonnegative, check_positive, python_int
 from .._util import as_float
 from ..materials import NeoHookean
 from ._displacement import AbstractDisplacementScene
@@ -52,10 +52,10 @@ class AxisAligned(AbstractDisplacementScene):
     mu: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 16)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=16)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=2)
-    dim: int = eqx.field(static=True, default=2)
+    cells: int = eqx.field(static=True, default=16, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=2, converter=python_int)
+    dim: int = eqx.field(static=True, default=2, converter=python_int)
 
     def __check_init__(self):
         check_finite("A", self.A)

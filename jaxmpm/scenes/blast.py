@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_positive, is_concrete
+from .._checks import check_positive, is_concrete, python_bool, python_int
 from .._util import as_float
 from ..materials import AdiabaticGas
 from ._base import AbstractScene
@@ -59,11 +59,11 @@ class Blast(AbstractScene):
     p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 16)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.5)
-    cells: int = eqx.field(static=True, default=8)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=24)
-    dim: int = eqx.field(static=True, default=2)
-    full: bool = eqx.field(static=True, default=False)
+    cells: int = eqx.field(static=True, default=8, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=24, converter=python_int)
+    dim: int = eqx.field(static=True, default=2, converter=python_int)
+    full: bool = eqx.field(static=True, default=False, converter=python_bool)
 
     def __check_init__(self):
         if self.dim not in (2, 3):

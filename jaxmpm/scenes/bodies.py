@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._checks import is_concrete
+from .._checks import is_concrete, python_int
 from .._util import as_float
 from ..regions import Region
 from ._base import AbstractScene
@@ -43,10 +43,10 @@ class Bodies(AbstractScene):
 
     parts: tuple[Region, ...] = eqx.field(converter=lambda v: tuple(v) if isinstance(v, list) else v)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=10)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=4)
-    dim: int = eqx.field(static=True, default=1)
+    cells: int = eqx.field(static=True, default=10, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=4, converter=python_int)
+    dim: int = eqx.field(static=True, default=1, converter=python_int)
     left: str = eqx.field(static=True, default="free")
     right: str = eqx.field(static=True, default="free")
 

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import check_finite, check_greater, check_positive, is_concrete, show
+from .._checks import check_finite, check_greater, check_positive, is_concrete, python_bool, python_int, show
 from .._util import as_float
 from ..exact_detonation import Isentrope, gamma_law_particles, isentrope_fan
 from ..explosives import (
@@ -238,10 +238,10 @@ class Detonation(AbstractScene):
     products: str = eqx.field(static=True, default="isentrope")
     ends: str = eqx.field(static=True, default="wall")
     burn: str = eqx.field(static=True, default="time")
-    smooth_burn: bool = eqx.field(static=True, default=False)
-    cells: int = eqx.field(static=True, default=200)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=4)
+    smooth_burn: bool = eqx.field(static=True, default=False, converter=python_bool)
+    cells: int = eqx.field(static=True, default=200, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=4, converter=python_int)
 
     def __check_init__(self):
         """Check the parameters, each by its own name, before the CJ state and the lengths they give.

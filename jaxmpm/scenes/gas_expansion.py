@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite
+from .._checks import check_finite, python_int
 from .._util import as_float
 from ..materials import AdiabaticGas
 from ._base import AbstractScene, check_point
@@ -59,10 +59,10 @@ class GasExpansion(AbstractScene):
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
     p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=8)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=10)
-    dim: int = eqx.field(static=True, default=1)
+    cells: int = eqx.field(static=True, default=8, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=10, converter=python_int)
+    dim: int = eqx.field(static=True, default=1, converter=python_int)
 
     def __check_init__(self):
         check_finite("beta", self.beta)

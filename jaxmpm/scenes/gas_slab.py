@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._checks import check_positive, is_concrete
+from .._checks import check_positive, is_concrete, python_int
 from .._util import as_float
 from ..materials import AdiabaticGas
 from ..particles import Body
@@ -50,9 +50,9 @@ class GasSlab(AbstractScene):
     p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 32)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=32)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=192)
+    cells: int = eqx.field(static=True, default=32, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=192, converter=python_int)
 
     def __check_init__(self):
         check_positive("p_atm", self.p_atm)

@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_greater, check_positive
+from .._checks import check_finite, check_greater, check_positive, python_bool, python_int
 from .._util import as_float, static_fraction
 from ..explosives import BURNS, EXPLOSIVES, JWL, JWLIsentrope, ProgrammedBurn, cj_energy, cj_state
 from ..geometry import Ball, Box
@@ -120,7 +120,7 @@ class AbstractGurney(AbstractScene):
     products: str = eqx.field(static=True, default="full")
     burn: str = eqx.field(static=True, default="time")
     metal: str = eqx.field(static=True, default="steel-4340")
-    strength: bool = eqx.field(static=True, default=False)
+    strength: bool = eqx.field(static=True, default=False, converter=python_bool)
 
     def __post_init__(self):
         """The scene's checks of the values as given (``AbstractScene.__post_init__``), then the Gurney
@@ -269,9 +269,9 @@ class GurneySlab(AbstractGurney):
 
     L: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
     split: float = eqx.field(static=True, converter=_fraction, default=0.8)
-    cells: int = eqx.field(static=True, default=200)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=800)
+    cells: int = eqx.field(static=True, default=200, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=800, converter=python_int)
 
     def __check_init__(self):
         check_positive("L", self.L)
@@ -376,9 +376,9 @@ class GurneyCylinder(AbstractGurney):
 
     R: Float[Array, ""] = eqx.field(converter=as_float, default=0.05)
     split: float = eqx.field(static=True, converter=_fraction, default=0.8)
-    cells: int = eqx.field(static=True, default=20)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=24)
+    cells: int = eqx.field(static=True, default=20, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=24, converter=python_int)
 
     def __check_init__(self):
         check_positive("R", self.R)

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_nonnegative, check_positive
+from .._checks import check_nonnegative, check_positive, python_int
 from .._util import as_float, static_fraction
 from ..materials import IdealGas
 from ..regions import Region
@@ -46,9 +46,9 @@ class Interface(AbstractScene):
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
     x0: float = eqx.field(static=True, converter=static_fraction, default=0.5)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 100)
-    cells: int = eqx.field(static=True, default=100)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=4)
+    cells: int = eqx.field(static=True, default=100, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=4, converter=python_int)
 
     def __check_init__(self):
         check_positive("rho_l", self.rho_l)

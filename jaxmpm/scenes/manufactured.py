@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_greater, check_nonnegative, check_positive
+from .._checks import check_finite, check_greater, check_nonnegative, check_positive, python_int
 from .._util import as_float
 from ..materials import AdiabaticGas, NeoHookean
 from ._displacement import AbstractDisplacementScene
@@ -62,9 +62,9 @@ class Manufactured(AbstractDisplacementScene):
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     model: str = eqx.field(static=True, default="neo-hookean")
     ends: str = eqx.field(static=True, default="wall")
-    cells: int = eqx.field(static=True, default=16)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=2)
+    cells: int = eqx.field(static=True, default=16, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=2, converter=python_int)
     displacement_fn: Callable | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_positive
+from .._checks import check_positive, python_int
 from .._util import as_float
 from ..exact_euler import noh
 from ..geometry import Box
@@ -49,9 +49,9 @@ class Noh(AbstractScene):
     u0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=5.0 / 3.0)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 200)
-    cells: int = eqx.field(static=True, default=200)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=4)
+    cells: int = eqx.field(static=True, default=200, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=4, converter=python_int)
 
     def __check_init__(self):
         check_positive("u0", self.u0)

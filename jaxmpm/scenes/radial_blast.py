@@ -7,7 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_positive, is_concrete
+from .._checks import check_positive, is_concrete, python_int
 from .._util import as_float
 from ..geometry import Ball
 from ..materials import AdiabaticGas
@@ -58,9 +58,9 @@ class AbstractRadialBlast(AbstractScene):
     p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=1.0e5)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.5)
     radius: Float[Array, ""] = eqx.field(converter=as_float, default=0.5)
-    cells: int = eqx.field(static=True, default=32)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=72)
+    cells: int = eqx.field(static=True, default=32, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=72, converter=python_int)
 
     def __check_init__(self):
         check_positive("p_atm", self.p_atm)

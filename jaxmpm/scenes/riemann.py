@@ -13,6 +13,7 @@ from .._checks import (
     check_nonnegative,
     check_positive,
     is_concrete,
+    python_int,
 )
 from .._util import as_float
 from ..exact import riemann_solution, riemann_waves, vacuum_forms
@@ -58,9 +59,9 @@ class Riemann(AbstractScene):
     p_atm: Float[Array, ""] = eqx.field(converter=as_float, default=0.0)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 64)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=64)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=8)
+    cells: int = eqx.field(static=True, default=64, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=8, converter=python_int)
 
     def __check_init__(self):
         """Check the parameters, each by its own name, before the derived quantities that combine

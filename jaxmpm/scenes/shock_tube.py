@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_positive, is_concrete
+from .._checks import check_finite, check_positive, is_concrete, python_int
 from .._util import as_float, static_fraction
 from ..exact_euler import riemann_solution, riemann_waves, vacuum_generated
 from ..geometry import AbstractShape, Box
@@ -104,9 +104,9 @@ class ShockTube(AbstractScene):
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
     x0: float = eqx.field(static=True, converter=static_fraction, default=0.5)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 400)
-    cells: int = eqx.field(static=True, default=400)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=4)
+    cells: int = eqx.field(static=True, default=400, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=4, converter=python_int)
 
     def __check_init__(self):
         check_positive("rho_l", self.rho_l)

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import check_positive
+from .._checks import check_positive, python_int
 from .._util import as_float
 from ..exact import vacuum_expansion
 from ..materials import AdiabaticGas
@@ -44,9 +44,9 @@ class VacuumExpansion(AbstractScene):
     gamma: Float[Array, ""] = eqx.field(converter=as_float, default=1.4)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=1.0 / 32)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=32)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=170)
+    cells: int = eqx.field(static=True, default=32, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=170, converter=python_int)
 
     def __check_init__(self):
         check_positive("P0", self.P0)

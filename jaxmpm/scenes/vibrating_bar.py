@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_finite, check_positive
+from .._checks import check_finite, check_positive, python_int
 from .._util import as_float
 from ..materials import LinearElastic
 from ._base import AbstractScene, check_point
@@ -39,9 +39,9 @@ class VibratingBar(AbstractScene):
     v0: Float[Array, ""] = eqx.field(converter=as_float, default=0.1)
     h: Float[Array, ""] = eqx.field(converter=as_float, default=0.0625)
     rho0: Float[Array, ""] = eqx.field(converter=as_float, default=1.0)
-    cells: int = eqx.field(static=True, default=16)
-    ppc: int = eqx.field(static=True, default=2)
-    pad: int = eqx.field(static=True, default=2)
+    cells: int = eqx.field(static=True, default=16, converter=python_int)
+    ppc: int = eqx.field(static=True, default=2, converter=python_int)
+    pad: int = eqx.field(static=True, default=2, converter=python_int)
 
     def __check_init__(self):
         check_positive("E", self.E)
