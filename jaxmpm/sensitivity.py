@@ -182,8 +182,18 @@ def _measured(
             raise ValueError(
                 f"values must hold a value for each of {', '.join(names)}; missing: {', '.join(missing)}"
             )
+        other = [k for k in values if k not in names]
+        if other:
+            raise ValueError(
+                f"values names {other[0]!r}, which is not one of {', '.join(names)} (the names this "
+                "function was made for)"
+            )
         for n in names:
             check_real(f"values[{n!r}]", values[n])
+        if "dt" in values and is_concrete(values["dt"]):
+            check_positive("dt", values["dt"])
+        if all(is_concrete(values[n]) for n in scene_names):  # the scene's own checks (tracers pass)
+            dataclasses.replace(scene, **{n: values[n] for n in scene_names})
         where = lambda s: [getattr(s, n) for n in scene_names]
         # as the scene's fields are: 0-d arrays of the float dtype (a tracer passes unchanged)
         sc = eqx.tree_at(where, scene, [as_float(values[n]) for n in scene_names])
@@ -240,7 +250,9 @@ def objective(
             a registry name is told how to make one), ``names`` is not a sequence of continuous
             parameter names (an unknown or structural name) or names one twice, ``error`` is neither
             a name of ``available_errors(scene)`` nor a function, or ``with_status`` is not a bool.
-            The function raises it for a run that broke down, as above.
+            The function raises it for values that are not a dict of exactly ``names`` to real
+            numbers, for values the scene refuses (``h <= 0``, a NaN: the scene's own checks, on
+            concrete values; tracers pass) or ``dt <= 0``, and for a run that broke down, as above.
     """
     measured = _measured(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
     check_bool("with_status", with_status)

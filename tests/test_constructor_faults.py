@@ -397,5 +397,7 @@ def test_numpy_integers_are_the_python_integers_they_hold(kind):
 
 def test_saved_fields_without_every_are_refused():
     """SaveAt(fields=...) without every would keep nothing: the fields are refused, not ignored."""
-    _one_line(lambda: jm.SaveAt(fields=("x", "F")), r"SaveAt.fields=\('x', 'F'\) without every keeps no history")
+    _one_line(
+        lambda: jm.SaveAt(fields=("x", "F")), r"SaveAt.fields=\('x', 'F'\) without every keeps no history"
+    )
     assert jm.SaveAt().every is None  # the default: no history

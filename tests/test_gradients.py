@@ -191,6 +191,28 @@ def test_objective_takes_plain_numbers_for_every_parameter():
         f({"beta": 200.0, "dt": 1e-5})
 
 
+def test_objective_checks_the_values_as_the_scene_does_and_refuses_other_names():
+    """Values the scene itself refuses (h <= 0, rho0 < 0, beta NaN) are refused by name before the
+    run, as GasExpansion(h=-0.125) is; a name the function was not made for is refused, not ignored."""
+    f = jm.sensitivity.objective(
+        jm.GasExpansion(cells=4), jm.MPQ(), ["beta", "h", "rho0", "dt"], dt=1e-5, steps=2
+    )
+    good = dict(beta=200.0, h=0.125, rho0=1.0, dt=1e-5)
+    for bad, match in (
+        (dict(h=-0.125), "h must be > 0, got -0.125"),
+        (dict(rho0=-1.0), "rho0 must be > 0, got -1"),
+        (dict(beta=float("nan")), "beta must be finite, got nan"),
+        (dict(dt=0.0), "dt must be > 0, got 0"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            f({**good, **bad})
+    with pytest.raises(ValueError, match=r"values names 'gama', which is not one of beta, h, rho0, dt"):
+        f({**good, "gama": 1.1})
+    # under jax.grad the values are traced: the scene's checks let tracers pass, and the run goes on
+    g = jax.grad(f)(good)
+    assert set(g) == set(good) and all(np.isfinite(float(v)) for v in g.values())
+
+
 def test_bad_gradient_names():
     with pytest.raises(ValueError, match="cells is structural"):
         jm.gradient(GAS, jm.SPQ(), ["cells"], dt=1e-5, steps=2)
