@@ -473,7 +473,14 @@ def failure_message(sol: Solution, dt: float | Float[Array, ""] | None) -> str:
     start = f["step"] == 0  # the initial state failed its checks: no step was taken
     last = max(f["step"] - 1, 0)
     st = sol.state
-    lines = " and ".join(f["quantities"])
+    # The particle is the first of the lowest bit's; a step that failed several checks may have
+    # failed the others at other particles.
+    first, *others = f["quantities"]
+    lines = (
+        first
+        if not others
+        else f"{first}; in the same step, at this particle or others: {' and '.join(others)}"
+    )
     # Under a transformation that traces the state but not the status (jax.grad, jax.jvp outside
     # jit), the step, the particle and the quantities are known, the state's values are not.
     traced = not all(is_concrete(a) for a in jax.tree.leaves((st, sol.body)))

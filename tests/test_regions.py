@@ -214,6 +214,28 @@ def test_negative_energy_is_a_named_breakdown():
         jm.simulate(scene, jm.CPDI(), dt=1e-3, steps=20)
 
 
+def test_a_step_failing_two_checks_names_only_the_first_of_them_on_its_particle():
+    """A linear-elastic bar inverts at its wall (F <= 0, bit 2) in the step in which the gas beside it
+    takes more energy than it has (bit 128). The particle named is the bar's; the gas's breakdown is
+    said to be the step's, not that particle's (which carries no energy)."""
+    solid, gas = jm.LinearElastic(E=1.0), jm.IdealGas(gamma=3.0)
+    parts = (
+        jm.Region(Box(0.0, 3.0), solid, rho0=1.0, velocity=-3.0),
+        jm.Region(Box(6.0, 10.0), gas, rho0=1.0, energy=1.0),
+    )
+    scene = jm.Bodies(parts=parts, cells=10, h=1.0, ppc=2, pad=20, left="wall")
+    with pytest.raises(jm.SimulationError) as info:
+        jm.simulate(scene, jm.CPDI(), dt=1.0, steps=2, cfl_limit=None)
+    f = info.value.solution.failure()
+    assert f["status"] == jm.status.NONPOSITIVE_F | jm.status.NEGATIVE_ENERGY and f["particle"] == 0
+    message = str(info.value)
+    named, rest = message.split(": F <= 0 (the particle's domain inverted)")
+    assert "particle 0 (X = 0.25" in named and "region 0" in named and "negative" not in named
+    assert rest.startswith(
+        "; in the same step, at this particle or others: negative specific internal energy e"
+    )
+
+
 @pytest.mark.parametrize(
     "make, match",
     [
