@@ -29,6 +29,7 @@ import numpy as np
 from ._checks import brief, check_bool, is_real
 from ._files import check_folder, write_whole
 from ._util import det
+from .metrics import pressure
 
 
 def _pad_vectors(a: np.ndarray) -> np.ndarray:
@@ -292,7 +293,8 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
 
     Returns:
         ``v``, ``F``, ``sigma``, ``J`` and ``X``, padded to 3 components (``F`` and ``sigma`` to 3x3),
-        ``rho`` (current density), ``p`` (``-tr(sigma) / dim``), ``region`` (0 for a body of one
+        ``rho`` (current density), ``p`` (``jaxmpm.metrics.pressure``: ``-tr(sigma) / dim``, the
+        in-plane deviator of a metal with strength taken out), ``region`` (0 for a body of one
         region), the smoothness measures ``rotation`` (the angle of ``F``'s polar rotation, radians:
         ``jaxmpm.metrics.rotation_angle``) and ``corner_jacobian_min`` (the smallest Jacobian of the
         particle's domain at its corners, ``<= 0`` where it is folded or inverted:
@@ -301,7 +303,6 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
     """
     rotation, corner_jacobian_min = _smoothness(state, body)
     J = np.asarray(det(state.F))
-    dim = state.F.shape[-1]
     out = {
         "v": _pad_vectors(np.asarray(state.v)),
         "F": _pad_tensors(np.asarray(state.F), fill_identity=True),
@@ -309,7 +310,7 @@ def particle_fields(state, body) -> dict[str, np.ndarray]:
         "J": J,
         "X": _pad_vectors(np.asarray(body.X)),
         "rho": np.asarray(body.m) / (np.asarray(body.V0) * J),
-        "p": -np.trace(np.asarray(state.sigma), axis1=1, axis2=2) / dim,
+        "p": np.asarray(pressure(state, allow_broken=True)),
         "region": np.zeros(body.n) if body.region is None else np.asarray(body.region, dtype=float),
         "rotation": np.asarray(rotation),
         "corner_jacobian_min": np.asarray(corner_jacobian_min),

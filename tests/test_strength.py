@@ -366,3 +366,23 @@ def test_an_eos_that_is_no_eos_is_refused_naming_it(eos):
     either names ``eos``."""
     with pytest.raises((ValueError, TypeError), match="eos"):
         jm.ElasticPlastic(eos, G=G, Y=Y)
+
+
+def test_the_vtk_pressure_of_a_metal_with_strength_is_the_pressure():
+    """The VTK files' ``p`` is ``jm.metrics.pressure`` (as ``--json``'s): the mean of the full 3x3
+    stress, the in-plane deviator taken out, not ``-tr(sigma) / dim``, which in 1D keeps ``s_xx``."""
+    from jaxmpm.vtk import particle_fields
+
+    ep = jm.ElasticPlastic(jm.MieGruneisen(**jm.MIE_GRUNEISEN["copper"]), **jm.STRENGTH["copper"])
+    h = 1e-3
+    parts = (
+        jm.Region(Box(0.0, 10.0), ep, rho0=8930.0, velocity=20.0),
+        jm.Region(Box(10.0, 20.0), ep, rho0=8930.0, velocity=-20.0),
+    )
+    sol = jm.simulate(
+        jm.Bodies(parts=parts, cells=20, h=h, ppc=2, pad=4), jm.CPDI(), dt=0.2 * h / 5000, steps=40
+    )
+    assert float(np.max(np.abs(np.asarray(sol.state.internal["s_xx"])))) > 1e7  # the plates have yielded
+    np.testing.assert_array_equal(
+        particle_fields(sol.state, sol.body)["p"], np.asarray(jm.metrics.pressure(sol.state))
+    )
