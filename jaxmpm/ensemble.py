@@ -343,6 +343,14 @@ def ensemble(
     if bad:
         raise ValueError(f"vary values must be finite; not finite in {bad}")
     _check_ranges(scene, arrays)
+    limit = simulate_kwargs.get("cfl_limit", 1.0)  # (simulate checks it; here only a number's)
+    if "cfl" in arrays and is_real(limit) and not isinstance(limit, bool) and np.any(arrays["cfl"] > limit):
+        i = int(np.flatnonzero(arrays["cfl"] > limit)[0])
+        raise ValueError(
+            f"vary['cfl'] is above cfl_limit = {float(limit):g}: {arrays['cfl'][i]:g} (member {i}), every "
+            "full step of which would fail its stability check; vary cfl <= cfl_limit (or pass "
+            "cfl_limit=None to run without the check)"
+        )
     throw = simulate_kwargs.pop("throw", False)
     if throw is not False:
         raise ValueError(

@@ -205,6 +205,19 @@ def test_ensemble_refuses_varying_dt_of_a_run_to_an_end_time():
         jm.ensemble(small(), jm.SPQ(), {"dt": [1e-5, 2e-5]}, t_end=1e-4, max_steps=10)
 
 
+def test_ensemble_refuses_a_cfl_above_the_limit_as_simulate_does():
+    """simulate refuses cfl > cfl_limit before the run; an ensemble refuses a member's the same way,
+    naming the member, rather than run it into a breakdown at its first step."""
+    with pytest.raises(ValueError, match=r"vary\['cfl'\] is above cfl_limit = 1: 2 \(member 1\)"):
+        jm.ensemble(small(), jm.SPQ(), {"cfl": [0.5, 2.0]}, t_end=1e-4, cfl=0.5, max_steps=10)
+    with pytest.raises(ValueError, match=r"vary\['cfl'\] is above cfl_limit = 0.4: 0.5 \(member 0\)"):
+        jm.ensemble(small(), jm.SPQ(), {"cfl": [0.5, 0.3]}, t_end=1e-4, cfl=0.3, max_steps=10, cfl_limit=0.4)
+    ens = jm.ensemble(
+        small(), jm.SPQ(), {"cfl": [0.5, 2.0]}, t_end=1e-4, cfl=0.5, max_steps=10, cfl_limit=None
+    )
+    assert ens.status.shape == (2,)
+
+
 def test_ensemble_names_vary_of_values_that_are_not_numbers():
     with pytest.raises(
         ValueError, match=r"vary\['beta'\] must be a 1D sequence of real numbers, one per member, got \['a'\]"
