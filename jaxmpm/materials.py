@@ -67,8 +67,9 @@ class AbstractMaterial(eqx.Module):
         ``rho c^2`` is the largest eigenvalue of the acoustic tensor ``Q_ik(n) = (1 / rho0) m_J m_L
         d2W / dF_iJ dF_kL`` with ``m = F^T n``, over ``n`` along the principal directions of ``B =
         F F^T`` (Marsden & Hughes, "Mathematical foundations of elasticity", ch. 6). In 1D it is
-        ``F sqrt(W''(F) / rho0)``, the closed forms of the 1D models; in 2D and 3D it serves models
-        without one (a Hessian of ``W`` and two small eigenproblems per particle).
+        ``F sqrt(W''(F) / rho0)``, the closed forms of the gas and the neo-Hookean solid (not of
+        ``LinearElastic``, whose small-strain speed leaves out the factor ``F``); in 2D and 3D it
+        serves models without one (a Hessian of ``W`` and two small eigenproblems per particle).
 
         Args:
             F: deformation gradient of one particle.
