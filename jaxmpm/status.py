@@ -5,6 +5,7 @@ import operator
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 NONFINITE = 1
 NONPOSITIVE_F = 2
@@ -29,15 +30,36 @@ QUANTITY = {
 }
 
 
-def describe(status: int) -> list[str]:
+def describe(status: int | np.integer | jax.Array) -> list[str]:
     """The failures set in a status bitmask, in words.
 
     Args:
-        status: the bitmask.
+        status: one run's bitmask: an integer >= 0 whose bits are among ``QUANTITY``'s (a Python or
+            NumPy integer, or a 0-d integer array such as ``Solution.status``).
 
     Returns:
-        The description (``QUANTITY``) of each bit set.
+        The description (``QUANTITY``) of each bit set (empty for 0).
+
+    Raises:
+        ValueError: ``status`` is not one such integer (an ensemble's array of statuses: describe each
+            member's, ``[describe(int(s)) for s in ensemble.status]``), or sets a bit no check sets.
     """
+    shape = getattr(status, "shape", ())
+    dtype = getattr(status, "dtype", None)
+    whole = isinstance(status, int) if dtype is None else np.issubdtype(dtype, np.integer)
+    if shape != () or isinstance(status, bool) or not whole:
+        raise ValueError(
+            f"status must be one run's status, an integer >= 0, got {status!r}"
+            + (
+                " (for an ensemble, describe each member's: [describe(int(s)) for s in ens.status])"
+                if shape
+                else ""
+            )
+        )
+    status = int(status)
+    known = functools.reduce(operator.or_, QUANTITY)
+    if status < 0 or status & ~known:
+        raise ValueError(f"status must be an integer >= 0 of the bits {sorted(QUANTITY)}, got {status}")
     return [text for bit, text in QUANTITY.items() if status & bit]
 
 

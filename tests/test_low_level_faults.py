@@ -296,3 +296,18 @@ def test_a_fit_and_an_ensemble_under_a_transformation_say_what_to_use():
 
     with pytest.raises(ValueError, match=r"^jm.ensemble batches its members itself, in one compiled call"):
         jax.vmap(status)(jnp.array([100.0, 200.0]))
+
+
+def test_describe_reads_one_status_and_refuses_what_is_none():
+    assert jm.status.describe(0) == []
+    assert jm.status.describe(np.int32(jm.status.LEFT_GRID)) == [jm.status.QUANTITY[jm.status.LEFT_GRID]]
+    both = jm.status.NONFINITE | jm.status.NEGATIVE_ENERGY
+    assert len(jm.status.describe(jnp.asarray(both, dtype=jnp.int32))) == 2
+    for bad in (None, "8", 1.5, True):
+        with pytest.raises(ValueError, match="status must be one run's status, an integer >= 0"):
+            raw(jm.status.describe)(bad)  # without the suite's type checks: what a user runs
+    with pytest.raises(ValueError, match=r"for an ensemble, describe each member's"):
+        raw(jm.status.describe)(np.array([0, 4]))
+    for bad in (-1, 1 << 20):
+        with pytest.raises(ValueError, match=rf"status must be an integer >= 0 of the bits .*, got {bad}$"):
+            jm.status.describe(bad)
