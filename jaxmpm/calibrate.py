@@ -611,7 +611,7 @@ def calibrate(
     dt,
     method: str = "lm",
     iterations: int = 50,
-    learning_rate: float = 0.05,
+    learning_rate: float | None = None,
     tol: float = 1e-14,
     noise: float | None = None,
     max_correlation: float = MAX_CORRELATION,
@@ -637,7 +637,7 @@ def calibrate(
             would lower it by less than 1e-6 of itself does not; the others: no
             start improved by 1e-9 of its loss in 3 iterations, none of which, for Adam, went back
             from a point that broke down).
-        learning_rate: Adam's step in ``theta``.
+        learning_rate: Adam's step in ``theta`` (default 0.05); only with ``method="adam"``.
         tol: a loss below which a start has converged.
         noise: the measurement noise (a standard deviation, in the units of ``x_data``); ``None``:
             estimated from the residuals.
@@ -660,7 +660,8 @@ def calibrate(
             or not finite, times not increasing from ``>= 0``, data beyond the grid, ``starts``
             that are not a dict or a non-empty list of dicts of numbers, a start the scene refuses,
             a bad ``tol``, ``noise``, threshold or ``progress``, bad ``devices`` or ``devices``
-            with a method other than ``"lm"``).
+            with a method other than ``"lm"``, a ``learning_rate`` with a method other than
+            ``"adam"``).
         CalibrationError: every start broke down, or the best start cannot go on because every
             step toward a lower loss is a run that breaks down.
         KeyboardInterrupt: Ctrl-C during the fit, saying the iteration it stopped in (answered
@@ -675,6 +676,13 @@ def calibrate(
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(repr(m) for m in METHODS)}, got {method!r}")
     check_int("iterations", iterations, 1)
+    if learning_rate is None:
+        learning_rate = 0.05
+    elif method != "adam":
+        raise ValueError(
+            f"learning_rate is Adam's step, and method={method!r} takes none (its steps come from its "
+            "own model of the loss): leave learning_rate out, or use method='adam'"
+        )
     check_positive("learning_rate", learning_rate)
     _check_tol(tol)
     _check_thresholds(noise, max_correlation, max_relative_std)

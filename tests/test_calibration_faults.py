@@ -244,6 +244,21 @@ def _fit():
             r"x_data must hold a nonzero plate speed \(the loss is scaled by the largest one\), got all",
         ),
         (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, learning_rate=0.1, dt=DT),
+            r"learning_rate is Adam's step, and method='lm' takes none",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, method="lbfgs", learning_rate=0.1, dt=DT),
+            r"learning_rate is Adam's step, and method='lbfgs' takes none",
+        ),
+        (
+            "calibrate",
+            lambda f, sc: f(sc, jm.CPDI(), TS, X, method="adam", learning_rate=-0.1, dt=DT),
+            r"learning_rate must be > 0, got -0.1",
+        ),
+        (
             "uncertainty",
             lambda f, sc: f(sc, (), {}, [1.0], J_theta=np.zeros((1, 0))),
             "names must name at least one fitted parameter",
