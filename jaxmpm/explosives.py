@@ -30,6 +30,7 @@ from jaxtyping import Array, Float
 
 from ._checks import (
     brief,
+    check_bool,
     check_finite,
     check_greater,
     check_int,
@@ -568,10 +569,11 @@ def jwl(name: str, check: bool = True) -> tuple[JWL, Float[Array, ""]]:
 
     Raises:
         ValueError: ``name`` is not a known explosive (the message lists them; a value that is not a
-            string is no name), or the row fails its check.
+            string is no name), ``check`` is not a bool, or the row fails its check.
     """
     if not isinstance(name, str) or name not in EXPLOSIVES:
         raise ValueError(f"unknown explosive {brief(name)}; known: {', '.join(sorted(EXPLOSIVES))}")
+    check_bool("check", check)
     row = EXPLOSIVES[name]
     eos = JWL(*(row[k] for k in ("rho0", "A", "B", "R1", "R2", "w")))
     e0 = as_float(row["E0"]) / eos.rho0

@@ -5,6 +5,7 @@ wrong, with what is allowed, before anything is traced; tracers and batched valu
 tests that accept one still ask for the parameter's name.)
 """
 
+import inspect
 import re
 
 import jax
@@ -401,3 +402,10 @@ def test_saved_fields_without_every_are_refused():
         lambda: jm.SaveAt(fields=("x", "F")), r"SaveAt.fields=\('x', 'F'\) without every keeps no history"
     )
     assert jm.SaveAt().every is None  # the default: no history
+
+
+def test_a_jwl_rows_check_is_a_switch():
+    for bad in ("yes", 1, None):
+        with pytest.raises(ValueError, match="check must be True or False"):
+            inspect.unwrap(ex.jwl)("tnt", check=bad)  # without the suite's type checks: what a user runs
+    assert ex.jwl("tnt", check=False)[0] == ex.jwl("tnt")[0]
