@@ -329,9 +329,20 @@ def _check_one_material(scene: AbstractScene) -> None:
     materials = [r.material for r in scene.regions()]
     first = materials[0]
     for k, m in enumerate(materials[1:], start=1):
-        same_type = type(m) is type(first)
-        concrete = all(is_concrete(a) for a in jax.tree.leaves((first, m)))
-        if not same_type or (concrete and not bool(eqx.tree_equal(first, m))):
+        same_type = type(m) is type(first) and jax.tree.structure(m) == jax.tree.structure(first)
+        if same_type:
+            pairs = list(zip(jax.tree.leaves(first), jax.tree.leaves(m)))
+            traced = [(a, b) for a, b in pairs if a is not b and not (is_concrete(a) and is_concrete(b))]
+            if traced:  # under jax.grad or jax.jit: a traced constant is told equal only by identity
+                raise ValueError(
+                    f"volume_average averages J over the particles of a cell or node, whatever their "
+                    f"region, so every region must be of one material; region {k} of "
+                    f"{type(scene).__name__} has traced constants (jax.grad, jax.jit, jax.vmap) that "
+                    "are not those of region 0, and traced values cannot be compared: give every region "
+                    "the same material object"
+                )
+        equal = same_type and all(a is b or np.array_equal(np.asarray(a), np.asarray(b)) for a, b in pairs)
+        if not equal:
             other = type(m).__name__ + ("" if not same_type else " with other constants")
             raise ValueError(
                 f"volume_average averages J over the particles of a cell or node, whatever their region, "

@@ -104,3 +104,27 @@ def test_volume_average_is_refused_for_regions_of_different_materials():
     tube = jm.ShockTube(cells=8)
     sol = jm.simulate(tube, jm.CPDI(), dt=1e-4, steps=1, volume_average="cell")
     assert sol.failure() is None
+
+
+def test_regions_whose_material_constants_are_traced_are_one_material_only_as_one_object():
+    """Under jax.grad the constants cannot be compared: two gases of traced gamma are refused unless
+    they are the same material object, which runs and has a derivative."""
+    from jaxmpm.geometry import Box
+
+    def run(gamma, shared):
+        left = jm.IdealGas(gamma=gamma)
+        right = left if shared else jm.IdealGas(gamma=5 / 3)
+        parts = (
+            jm.Region(Box(0.0, 5.5), left, rho0=1.0, energy=2.5),
+            jm.Region(Box(5.51, 10.0), right, rho0=0.125, energy=2.0),
+        )
+        sc = jm.Bodies(parts=parts, cells=10, h=0.1, ppc=2, pad=4, left="wall", right="wall")
+        return jnp.sum(jm.simulate(sc, jm.CPDI(), dt=1e-3, steps=5, volume_average="cell").state.x)
+
+    with pytest.raises(ValueError, match="region 1 of Bodies is of another material"):
+        run(1.4, shared=False)
+    with pytest.raises(
+        ValueError, match="region 1 of Bodies has traced constants .* give every region the same"
+    ):
+        jax.grad(run)(1.4, False)
+    assert np.isfinite(float(jax.grad(run)(1.4, True)))
