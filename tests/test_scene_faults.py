@@ -3,6 +3,7 @@ is allowed, before anything is traced; tracers pass unchecked; a region's defaul
 vector of its shape's dimension."""
 
 import math
+import re
 
 import jax
 import jax.numpy as jnp
@@ -302,3 +303,21 @@ def test_exact_gas_functions_pass_tracers():
     assert np.all(np.isfinite(np.asarray(F_s)))
     # under jit the checks see tracers: bad values are the caller's, and give NaN
     assert math.isnan(float(jax.jit(exact.sound_speed)(1.0, -1.0, 1.4, 1.0)))
+
+
+@pytest.mark.parametrize(
+    "fn, got",
+    [
+        (lambda s, X, t: 1e-4 * t * jnp.sum(X), "float64[]"),
+        (lambda s, X, t: jnp.zeros(2), "float64[2]"),
+        (lambda s, X, t: jnp.zeros((1,), int), "int64[1]"),
+        (lambda s, X, t: None, "NoneType"),
+    ],
+)
+def test_a_displacement_field_of_the_wrong_shape_or_type_is_refused_when_the_scene_is_made(fn, got):
+    with pytest.raises(
+        ValueError, match=rf"displacement_fn\(scene, X, t\) must return .* got {re.escape(got)}$"
+    ):
+        jm.Manufactured(cells=4, displacement_fn=fn)
+    good = jm.Manufactured(cells=4, displacement_fn=lambda s, X, t: 1e-4 * t * X)
+    assert jm.simulate(good, jm.MPQ(), dt=1e-3, steps=1).failure() is None

@@ -4,6 +4,7 @@ from collections.abc import Callable
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
@@ -77,6 +78,16 @@ class Manufactured(AbstractDisplacementScene):
                 f"displacement_fn must be a function u(scene, X, t) -> u, or None, got "
                 f"{type(self.displacement_fn).__name__} {self.displacement_fn!r:.60}"
             )
+        if self.displacement_fn is not None:  # its shape and type, from an abstract evaluation
+            point = jax.ShapeDtypeStruct((self.dim,), self.h.dtype)
+            time = jax.ShapeDtypeStruct((), self.h.dtype)
+            out = jax.eval_shape(self.displacement_fn, self, point, time)
+            if not hasattr(out, "shape") or out.shape != (self.dim,) or out.dtype != self.h.dtype:
+                got = f"{out.dtype}{list(out.shape)}" if hasattr(out, "shape") else type(out).__name__
+                raise ValueError(
+                    f"displacement_fn(scene, X, t) must return the displacement at X, {self.h.dtype} of "
+                    f"shape ({self.dim},) as X is, got {got}"
+                )
         check_finite("A", self.A)
         # Both models' constants are checked whichever model runs: a bad value is refused, not
         # ignored because the other model would have used it.
