@@ -260,10 +260,16 @@ def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
 
     Returns:
         ``{"mass": (n_nodes,), "velocity": (n_nodes, 3)}``.
+
+    Raises:
+        ValueError: ``model`` is not a ``Model``, or ``setup`` or ``state`` is not of its run (as
+            ``jm.step`` checks them).
     """
     from . import _step
 
+    _step.check_model(model)
     setup = eqx.filter_jit(_step.setup)(model) if setup is None else setup
+    _step.check_belongs(model, setup, state)
     mass, velocity = _nodal(model, setup, state)
     return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
 

@@ -3,10 +3,12 @@ exactly the run's values, the grid fields are the step's own particle-to-grid tr
 that breaks down still leaves its good frames."""
 
 import errno
+import inspect
 import os
 import pathlib
 import re
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -276,3 +278,23 @@ def test_a_new_series_interrupted_at_any_rename_leaves_nothing(tmp_path, monkeyp
     calls[0], fail_at[0] = 0, None
     jm.vtk.write_series(folder, model, sol)
     assert calls[0] == 20 and len(list(folder.iterdir())) == 10
+
+
+def test_nodal_fields_check_that_the_state_and_setup_are_of_the_model():
+    scene = jm.GasExpansion(cells=4)
+    sol = jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=2)
+    model = jm.Model(scene, jm.MPQ(), jm.FLIP())
+    for args, match in (
+        ((model, sol.body), r"state must be a State of model"),
+        (
+            (jm.Model(jm.GasExpansion(cells=6), jm.MPQ(), jm.FLIP()), sol.state),
+            "state does not belong to model",
+        ),
+        ((model, sol.state, "x"), r"setup must be the Setup of model, jm.setup\(model\), got 'x'"),
+        ((scene, sol.state), r"model must be a jm.Model\(scene, interpolator, transfer\), got the scene"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            inspect.unwrap(jm.vtk.nodal_fields)(*args)  # without the suite's type checks: what a user runs
+    assert float(np.sum(jm.vtk.nodal_fields(model, sol.state)["mass"])) == pytest.approx(
+        float(jnp.sum(sol.body.m))
+    )
