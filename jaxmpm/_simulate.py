@@ -34,6 +34,7 @@ from ._step import (
 )
 from ._util import as_float, det, host
 from .interpolators import AbstractInterpolator
+from .materials import AbstractEOS
 from .particles import Body, State
 from .scenes import AbstractScene
 from .transfers import FLIP, AbstractTransfer
@@ -451,19 +452,30 @@ def run_scan(
 _run_scan_jit = eqx.filter_jit(run_scan)
 
 
-def _energy(sol: Solution, p: int) -> str:
-    """``, region k, e = ...`` for a particle of a body of regions ("" otherwise)."""
-    out = "" if sol.body.region is None else f", region {int(host(sol.body.region)[p])}"
-    return out + ("" if sol.state.e is None else f", e = {float(host(sol.state.e)[p]):.6g}")
+def _energy(sol: Solution, p: int, scene: AbstractScene | None) -> str:
+    """``, region k, e = ...`` for a particle of a body of regions ("" otherwise); ``e`` only where
+    the particle's material carries an energy (a region of a model of ``F`` alone carries none)."""
+    region = None if sol.body.region is None else int(host(sol.body.region)[p])
+    out = "" if region is None else f", region {region}"
+    if sol.state.e is None:
+        return out
+    if region is not None and scene is not None and scene.regions is not None:
+        if not isinstance(scene.regions()[region].material, AbstractEOS):
+            return out
+    return out + f", e = {float(host(sol.state.e)[p]):.6g}"
 
 
-def failure_message(sol: Solution, dt: float | Float[Array, ""] | None) -> str:
+def failure_message(
+    sol: Solution, dt: float | Float[Array, ""] | None, scene: AbstractScene | None = None
+) -> str:
     """The message of a breakdown: the step, the time, the first failing particle and the quantities.
 
     Args:
         sol: a solution whose status is not 0.
         dt: the fixed time step (a number, or a tracer under ``jax.grad`` in ``dt``: the time is then
             given in steps of it), or ``None`` for a run to an end time (variable steps).
+        scene: the run's scene, if known: a particle's ``e`` is then given only where its region's
+            material carries an energy.
 
     Returns:
         The message of ``SimulationError``.
@@ -507,7 +519,7 @@ def failure_message(sol: Solution, dt: float | Float[Array, ""] | None) -> str:
         if st.x.shape[1] == 1:
             who = (
                 f"particle {p} (X = {float(X[0]):.6g}, x = {float(x[0]):.6g}, F = {float(F[0, 0]):.6g}"
-                f"{_energy(sol, p)} at step {last})"
+                f"{_energy(sol, p, scene)} at step {last})"
             )
         else:  # 2D, 3D: vectors, and J = det F
 
@@ -517,7 +529,7 @@ def failure_message(sol: Solution, dt: float | Float[Array, ""] | None) -> str:
             J = float(det(jnp.asarray(F)))
             who = (
                 f"particle {p} (X = {vec(X)}, x = {vec(x)}, J = det F = {J:.6g}"
-                f"{_energy(sol, p)} at step {last})"
+                f"{_energy(sol, p, scene)} at step {last})"
             )
     if start:
         return (
@@ -536,7 +548,8 @@ def _finish(sol: Solution, dt, throw: bool, model: Model) -> Solution:
     if is_concrete(sol.state.status):  # also under jax.grad or jax.jvp outside a jit
         if int(sol.state.status) != 0:
             raise SimulationError(
-                failure_message(sol, float(dt) if is_concrete(dt) and dt is not None else dt), sol
+                failure_message(sol, float(dt) if is_concrete(dt) and dt is not None else dt, model.scene),
+                sol,
             )
         return sol
     if model.devices is not None and len(model.devices) > 1:

@@ -439,7 +439,7 @@ def trajectory(scene: AbstractScene, interpolator: AbstractInterpolator, ts, *, 
         values = free_surface(h["x"], h["F"], h.get("corners"), sol.body)
     bad = sol.state.status != 0
     if is_concrete(bad) and bool(bad):
-        raise SimulationError(failure_message(sol, float(dt)), sol)
+        raise SimulationError(failure_message(sol, float(dt), scene), sol)
     return jnp.where(bad, jnp.nan, jnp.interp(ts, sol.ts, values))
 
 

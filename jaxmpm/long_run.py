@@ -573,7 +573,7 @@ def _drive(
             bar.close()
     if int(state.status) and throw:
         where = f" Everything up to it is saved in {out}." if out is not None else ""
-        raise SimulationError(failure_message(sol, dt) + where, sol)
+        raise SimulationError(failure_message(sol, dt, model.scene) + where, sol)
     return sol, compile_s, wall_s
 
 

@@ -231,6 +231,10 @@ def test_a_step_failing_two_checks_names_only_the_first_of_them_on_its_particle(
     message = str(info.value)
     named, rest = message.split(": F <= 0 (the particle's domain inverted)")
     assert "particle 0 (X = 0.25" in named and "region 0" in named and "negative" not in named
+    assert ", e = " not in named  # a linear-elastic particle carries no internal energy
+    gas_alone = jm.Bodies(parts=parts[1:], cells=10, h=1.0, ppc=2, pad=20, left="wall")
+    with pytest.raises(jm.SimulationError, match=r"particle 0 \(X = 6.25, .*, e = -?[0-9.e+-]+ at step 0\)"):
+        jm.simulate(gas_alone, jm.CPDI(), dt=1.0, steps=2, cfl_limit=None)
     assert rest.startswith(
         "; in the same step, at this particle or others: negative specific internal energy e"
     )

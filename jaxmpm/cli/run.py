@@ -333,7 +333,7 @@ def _to_end_in_chunks(scene, interp, timing, settings, chunk):
     sol = jm.Solution(finish_to_end(state, dt), body, None, None)
     wall = time.perf_counter() - t1
     if int(sol.state.status):
-        raise jm.SimulationError(failure_message(sol, None), sol)
+        raise jm.SimulationError(failure_message(sol, None, scene), sol)
     return sol, t1 - t0, wall
 
 
