@@ -992,8 +992,14 @@ def polar_rotation(
         ``R``.
 
     Raises:
-        ValueError: ``iterations`` is not an integer >= 1.
+        ValueError: ``F`` is not a stack of square matrices of 1 to 3 rows, or ``iterations`` is not an
+            integer >= 1.
     """
+    shape = np.shape(F)
+    if len(shape) != 3 or shape[1] != shape[2] or shape[1] not in (1, 2, 3):
+        raise ValueError(
+            f"F must be deformation gradients, shape (n, dim, dim) with dim 1, 2 or 3, got shape {shape}"
+        )
     if is_concrete(iterations):
         count = iterations
         if isinstance(count, jax.Array) and count.ndim == 0 and jnp.issubdtype(count.dtype, jnp.integer):

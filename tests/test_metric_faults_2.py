@@ -2,6 +2,8 @@
 time past the one the exact solution holds until are refused; the ranges of the smoothness measures'
 settings and the common mistakes in their arguments are named."""
 
+import re
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -256,6 +258,16 @@ def test_polar_rotation_takes_at_least_one_iteration(iterations):
     F = jnp.array([[[2.0, 1.0], [0.0, 1.0]]])
     with pytest.raises(ValueError, match=rf"^iterations must be an integer >= 1, got {iterations}$"):
         metrics.polar_rotation(F, iterations=iterations)
+
+
+@pytest.mark.parametrize("shape", [(4, 2), (2,), (4, 2, 3), (4, 4, 4)])
+def test_polar_rotation_takes_a_stack_of_square_matrices_of_1_to_3_rows(shape):
+    with pytest.raises(
+        ValueError,
+        match=r"^F must be deformation gradients, shape \(n, dim, dim\) with dim 1, 2 or 3, got shape "
+        + re.escape(str(shape)),
+    ):
+        raw(metrics.polar_rotation)(jnp.ones(shape))  # without the suite's type checks: what a user runs
 
 
 def test_polar_rotation_takes_a_numpy_integer():
