@@ -432,7 +432,8 @@ def errors(
             ensemble's batch, ``None``), ``body`` is not a ``Body``, the state is of a run that broke
             down (and ``allow_broken`` is ``False``), its time ``t`` is not finite and >= 0 (every
             measure refuses such a state), the state is not of the scene's dimension, the state and
-            the body have different particle counts, ``where`` is not one bool per particle.
+            the body have different particle counts, or the body has not the particles the scene
+            seeds (a run of another scene), ``where`` is not one bool per particle.
     """
     _check_scene(scene)
     _check_state(state, "errors()", allow_broken)
@@ -719,10 +720,22 @@ def _check_particles(state: State, body: Body) -> None:
 
 
 def _check_run(scene: AbstractScene, state: State, body: Body, what: str) -> None:
-    """One run's state (``_check_state``) of the scene's dimension and the body's particles."""
+    """One run's state (``_check_state``) of the scene's dimension and the body's particles, and a body
+    of as many particles as the scene seeds (told where the scene's regions are concrete)."""
     if state.x.shape[1] != scene.dim:
         raise ValueError(f"the state is {state.x.shape[1]}D and the scene {scene.name} is {scene.dim}D")
     _check_particles(state, body)
+    if scene.regions is None:
+        seeded = (scene.cells * scene.ppc) ** scene.dim
+    elif all(is_concrete(a) for a in jax.tree.leaves(scene)):
+        seeded = len(scene.layout().keep)
+    else:
+        return
+    if body.n != seeded:
+        raise ValueError(
+            f"{what}: the body has {body.n} particles, and {scene.name} seeds {seeded} ({scene.cells} "
+            f"cells, ppc={scene.ppc}): measure a run with the scene it ran"
+        )
 
 
 def _check_where(where, body: Body):

@@ -372,3 +372,20 @@ def test_corners_of_the_wrong_shape_are_named(runs):
     for fn in (metrics.corner_jacobians, jm.corner_gap):
         with pytest.raises(ValueError, match=message):
             raw(fn)(jnp.zeros((2, 2)), body)
+
+
+@pytest.mark.parametrize("name", ["errors", "diagnostics"])
+def test_a_scene_that_seeds_other_particles_than_the_body_is_refused(name):
+    """Measured against another scene (here twice the cells), a run's errors would compare it with the
+    wrong exact solution: the particle counts tell them apart."""
+    sol = jm.simulate(jm.VibratingBar(cells=4), jm.MPQ(), dt=1e-4, steps=2)
+    fn = getattr(jm, name)
+    with pytest.raises(
+        ValueError, match=rf"{name}\(\): the body has 8 particles, and vibrating-bar seeds 16"
+    ):
+        fn(jm.VibratingBar(cells=8), sol.state, sol.body)
+    fn(jm.VibratingBar(cells=4), sol.state, sol.body)
+    disk = jm.BlastDisk(cells=8)
+    run = jm.simulate(disk, jm.MPQ(), dt=1e-6, steps=1)
+    with pytest.raises(ValueError, match=r"the body has \d+ particles, and blast-disk seeds \d+"):
+        fn(jm.BlastDisk(cells=10), run.state, run.body)
