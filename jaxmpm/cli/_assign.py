@@ -208,19 +208,23 @@ def ranges(items: Iterable[str], allowed: Sequence[str]) -> dict[str, tuple[floa
 
 
 def comma_list(text: str, option: str | None = None) -> list[str]:
-    """The non-empty items of a comma-separated list, as written (``--grad``, ``--fit``, ``--start``).
+    """The items of a comma-separated list, as written (``--grad``, ``--fit``, ``--start``).
 
     Args:
         text: e.g. ``"beta,h"``.
         option: the option, for the error (``"--fit"``).
 
     Returns:
-        The items, in order.
+        The items, in order (none for a text of commas alone, which the caller refuses by its own
+        words).
 
     Raises:
-        UsageError: an item given twice: ``"{option}: {item} is given twice"``.
+        UsageError: an item given twice: ``"{option}: {item} is given twice"``; an empty item beside
+            others (``"gamma,"``).
     """
     items = [item for item in text.split(",") if item]
+    if items and len(items) != len(text.split(",")):
+        raise UsageError(f"{option + ': ' if option else ''}an empty item in {text!r} (a comma too many?)")
     for i, item in enumerate(items):
         if item in items[:i]:
             raise UsageError(f"{option + ': ' if option else ''}{item} is given twice")
