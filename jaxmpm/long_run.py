@@ -43,7 +43,8 @@ Safety:
   the file and what is wrong. A missing file is a ``FileNotFoundError``.
 - Ctrl-C (``KeyboardInterrupt``) stops a run within a moment (the host polls the running chunk
   instead of blocking on it), discards the chunk in flight, saves the last finished chunk to
-  ``out`` (atomically, as every save) and raises ``Interrupted``, a ``KeyboardInterrupt`` with
+  ``out`` (atomically, as every save; before the first chunk of this call there is none, and
+  ``out`` keeps what it held) and raises ``Interrupted``, a ``KeyboardInterrupt`` with
   ``step``, ``saved_in`` and ``solution``; ``resume(out)`` then continues bit for bit. A run over
   several processes' devices finishes the chunk in flight instead (its collectives need every
   process), and all processes stop after the same chunk when any of them had a Ctrl-C.
@@ -132,9 +133,11 @@ class Interrupted(KeyboardInterrupt):
 
     Args:
         message: one line, "interrupted at step N of M; saved in FILE (continue with
-            `jaxmpm resume FILE`)", or without the file when the run has none.
+            `jaxmpm resume FILE`)", or without the file when the run has none, or saying that
+            nothing was saved when no chunk had finished.
         step: the last finished step.
-        saved_in: the file the run was saved to, or ``None`` (a run without ``out``).
+        saved_in: the file the run was saved to, or ``None`` (a run without ``out``, or stopped
+            before its first chunk finished: the file is then as it was).
         solution: the ``Solution`` up to ``step`` (its history included).
 
     Attributes:
@@ -491,7 +494,7 @@ def _drive(
     dt = float(dt_arr)
     n_particles = rec.body.n
     limit = jnp.asarray(steps, dtype=jnp.int32)
-    done = int(state.step)
+    done = start = int(state.step)
     bar = None
     held = None  # the step that ``out`` holds, written by this drive
     # A run over several processes' devices: each chunk's collectives need every process, so a Ctrl-C
@@ -557,15 +560,24 @@ def _drive(
         if writing:  # raised inside the write itself, not a Ctrl-C (held back there): out is as it was
             raise
         step = int(state.step)
-        if out is not None:
+        # Before its first chunk this drive has nothing to save, and out keeps what it holds (with
+        # overwrite, an earlier run's file; resumed, the checkpoint it started from).
+        saving = out is not None and (held is not None or step != start)
+        if saving:
             with _DeferInterrupt():  # a second Ctrl-C does not break this save
                 if held != step:
                     save()
-        where = f"; saved in {out} (continue with `jaxmpm resume {out}`)" if out is not None else ""
+        if saving:
+            where = f"; saved in {out} (continue with `jaxmpm resume {out}`)"
+        elif out is not None:
+            kept = f"{out} is as it was" if os.path.lexists(out) else f"no {out} was written"
+            where = f", before its first chunk finished: nothing saved ({kept})"
+        else:
+            where = ""
         raise Interrupted(
             f"interrupted at step {step} of {steps}{where}",
             step=step,
-            saved_in=out,
+            saved_in=out if saving else None,
             solution=rec.solution(state),
         ) from None
     finally:

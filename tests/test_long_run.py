@@ -296,6 +296,22 @@ def test_interrupt_right_after_a_checkpoint_saves_once(tmp_path, monkeypatch):
     assert info.value.step == 40 and writes == [40] and long_run.load(path)[1]["step"] == 40
 
 
+def test_interrupt_before_the_first_chunk_leaves_the_saved_file_as_it_was(tmp_path, monkeypatch):
+    """With overwrite=True, a Ctrl-C before the new run has finished a chunk writes nothing: the file
+    still holds the run that was there (it was replaced by the new run's step 0)."""
+    path = tmp_path / "run.npz"
+    long_run.run(SCENE, jm.SPQ(), out=path, **KW)
+    before = path.read_bytes()
+    writes = count_writes(monkeypatch)
+    interrupt_at(monkeypatch, 1)
+    with pytest.raises(long_run.Interrupted) as info:
+        long_run.run(SCENE, jm.MPQ(), out=path, overwrite=True, **KW)
+    e = info.value
+    assert writes == [] and path.read_bytes() == before and e.saved_in is None and e.step == 0
+    kept = f"nothing saved ({path} is as it was)"
+    assert str(e) == f"interrupted at step 0 of 95, before its first chunk finished: {kept}"
+
+
 def test_interrupt_without_out(monkeypatch):
     interrupt_at(monkeypatch, 2)
     with pytest.raises(long_run.Interrupted) as info:
