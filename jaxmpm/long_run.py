@@ -331,8 +331,16 @@ class InterruptLatch:
         self.pending = False
 
     def __call__(self, signum, frame):
-        self.pending = True
+        self.note(signum)
         raise KeyboardInterrupt
+
+    def note(self, signum) -> None:
+        """Note the signal (``pending``) without raising: the interrupt is raised by who held it back.
+
+        Args:
+            signum: the signal's number.
+        """
+        self.pending = True
 
     @classmethod
     def install(cls) -> InterruptLatch:
@@ -378,28 +386,36 @@ class _DeferInterrupt:
 
     In the main thread, with Python's own SIGINT handler or an ``InterruptLatch`` installed, a SIGINT
     that arrives inside the block is noted (``pending``) rather than raised, so that a chunk is either
-    wholly recorded (and saved) or not at all. Elsewhere (another thread, a handler of the user's) it
-    changes nothing.
+    wholly recorded (and saved) or not at all; so is a SIGTERM whose handler is an ``InterruptLatch``
+    (the command line's). Elsewhere (another thread, a handler of the user's) it changes nothing.
     """
 
     def __init__(self):
         self.pending = False
-        self._previous = None
+        self._previous = {}
 
     def _note(self, signum, frame):
         self.pending = True
+        self._signals.append(signum)
 
     def __enter__(self):
-        if threading.current_thread() is threading.main_thread() and (
-            signal.getsignal(signal.SIGINT) is signal.default_int_handler
-            or isinstance(signal.getsignal(signal.SIGINT), InterruptLatch)
-        ):
-            self._previous = signal.signal(signal.SIGINT, self._note)
+        self._signals = []
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                handler = signal.getsignal(sig)
+                if isinstance(handler, InterruptLatch) or (
+                    sig == signal.SIGINT and handler is signal.default_int_handler
+                ):
+                    self._previous[sig] = signal.signal(sig, self._note)
         return self
 
     def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        if self.pending and self._signals[0] != signal.SIGINT:  # a SIGTERM held back: its handler
+            handler = self._previous.get(self._signals[0])  # notes what it was before the raise
+            if isinstance(handler, InterruptLatch):
+                handler.note(self._signals[0])
         return False
 
 

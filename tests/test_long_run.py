@@ -321,6 +321,48 @@ def test_interrupt_without_out(monkeypatch):
     assert int(e.solution.state.step) == 10
 
 
+def test_cli_sigterm_saves_the_last_chunk_like_ctrl_c_and_exits_143(tmp_path, monkeypatch, capsys):
+    """SIGTERM (kill, a cluster's scheduler) stops a run as Ctrl-C does: the chunk in flight is
+    discarded, the last finished one saved whole (no temporary file left), one line, status 143."""
+    import os
+    import signal
+
+    from jaxmpm.cli import main
+
+    real = long_run.wait
+    calls = {"n": 0}
+
+    def wait(tree):  # SIGTERM to this process while the third chunk computes
+        calls["n"] += 1
+        if calls["n"] == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return real(tree)
+
+    monkeypatch.setattr(long_run, "wait", wait)
+    path = tmp_path / "run.npz"
+    argv = [
+        "run",
+        "vibrating-bar",
+        "cells=8",
+        "--interpolator",
+        "mpq",
+        "--dt",
+        "1e-4",
+        "--steps",
+        "95",
+        "--chunk",
+        "10",
+    ]
+    assert main([*argv, "--out", str(path), "--no-progress"]) == 143
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"jaxmpm: terminated (SIGTERM): interrupted at step 20 of 95; saved in {path} "
+        f"(continue with `jaxmpm resume {path}`)"
+    ]
+    assert long_run.load(path)[1]["step"] == 20 and sorted(os.listdir(tmp_path)) == ["run.npz"]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the caller's handler, back
+
+
 def test_cli_resume_interrupted_exits_130_and_continues(tmp_path, monkeypatch, capsys):
     from jaxmpm.cli import main
 

@@ -59,14 +59,16 @@ def main(argv: list[str] | None = None) -> int:
         down (one line on stderr naming the step, the particle and the quantity); 74 for output that
         cannot be written (one line, ``jaxmpm: error: cannot write WHAT: REASON``: a full disk under
         ``--out``, ``--vtk`` or standard output); 130 for Ctrl-C (one line: the step reached and,
-        with ``--out``, the file that holds it); 141 when stdout is closed by its reader
+        with ``--out``, the file that holds it); 143 for SIGTERM (the same, as for Ctrl-C: the last
+        finished chunk saved, one line); 141 when stdout is closed by its reader
         (``jaxmpm ... | head``), silently; 1 for ``bench`` when one of its benchmark processes fails.
     """
     jax.config.update("jax_enable_x64", True)
     main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.getsignal(signal.SIGINT) if main_thread else None
+    previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) if main_thread else None
     if main_thread:
-        InterruptLatch.install()  # a Ctrl-C that Python ignores (in a gc callback) is not lost
+        latch = InterruptLatch.install()  # a Ctrl-C that Python ignores (in a gc callback) is not lost
+        signal.signal(signal.SIGTERM, _Terminate(latch))  # kill, a scheduler: stopped as by Ctrl-C
     stdout = sys.stdout
     sys.stdout = _Output(_Closed() if stdout is None else stdout)
     try:
@@ -74,8 +76,26 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if isinstance(sys.stdout, _Output):  # not replaced meanwhile (start_processes may)
             sys.stdout = stdout
-        if main_thread:  # a caller in this process (a test, a notebook) keeps its own handler
-            signal.signal(signal.SIGINT, previous)
+        if main_thread:  # a caller in this process (a test, a notebook) keeps its own handlers
+            signal.signal(signal.SIGINT, previous[0])
+            signal.signal(signal.SIGTERM, previous[1])
+
+
+class _Terminate(InterruptLatch):
+    """The command line's SIGTERM handler: the interrupt of Ctrl-C (the SIGINT ``InterruptLatch``'s),
+    noted as a SIGTERM, so that a run stops as it does for Ctrl-C (its last finished chunk saved
+    whole) and the process exits with 143."""
+
+    received = False
+
+    def __init__(self, latch: InterruptLatch):
+        super().__init__()
+        self._latch = latch
+
+    def note(self, signum) -> None:
+        _Terminate.received = True
+        self.pending = True
+        self._latch.note(signum)
 
 
 def _dispatch(argv):
@@ -112,6 +132,10 @@ def _command(argv) -> int:
         print(e, file=sys.stderr)
         return 3
     except KeyboardInterrupt as e:
+        if _Terminate.received:
+            _Terminate.received = False
+            print(f"jaxmpm: terminated (SIGTERM): {_one_line(e) or 'interrupted'}", file=sys.stderr)
+            return 143
         print(f"jaxmpm: {_one_line(e) or 'interrupted'}", file=sys.stderr)
         return 130
 
@@ -185,7 +209,7 @@ def console() -> None:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _quiet_interrupt)
     code = main()
-    if code == 130:
+    if code in (130, 143):
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):
                 stream.flush()
