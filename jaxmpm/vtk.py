@@ -386,7 +386,8 @@ def write_series(
             holds a batch (an ensemble's); it broke down and ``allow_broken`` is ``False``; the
             model is not the solution's run (as far as the solution records it, above); its
             internal variables have names legacy VTK cannot hold; ``out_dir`` is not a folder's name
-            (empty, or not a path) or is a file, or a folder is there under a name to write; ``model``
+            (empty, or not a path), is a file or a link to nothing or lies under one, or a folder
+            is there under a name to write; ``model``
             is not a ``Model`` or ``solution`` not a ``Solution``; or ``overwrite`` or
             ``allow_broken`` is not a bool.
         FileExistsError: a file to write is already in ``out_dir`` and ``overwrite`` is ``False``.
@@ -448,6 +449,11 @@ def write_series(
     out = pathlib.Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out_dir {out_dir} is a file, not a folder")
+    if out.is_symlink() and not out.exists():
+        raise ValueError(f"out_dir {out_dir} is a link to nothing ({os.readlink(out)}), not a folder")
+    above = next((p for p in out.parents if p.exists() or p.is_symlink()), None)
+    if above is not None and not above.is_dir():
+        raise ValueError(f"out_dir {out_dir}: {above} is a file (or a link to nothing), not a folder")
     names = [f"{kind}_{frame:05d}.vtk" for frame in range(len(frames)) for kind in ("particles", "grid")]
     _refuse_existing([out / name for name in names + ["particles.pvd", "grid.pvd"]], overwrite)
     made = not out.exists()

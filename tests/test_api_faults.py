@@ -424,5 +424,14 @@ def test_write_series_checks_the_model_and_the_solution_before_writing(tmp_path)
     a_file.write_text("MINE")
     with pytest.raises(ValueError, match="is a file, not a folder"):
         jm.vtk.write_series(a_file, jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
+    with pytest.raises(ValueError, match=rf"out_dir {a_file}/sub: {a_file} is a file .*, not a folder"):
+        jm.vtk.write_series(a_file / "sub", jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    for overwrite in (False, True):
+        with pytest.raises(ValueError, match=r"out_dir .*dangling is a link to nothing \(.*nowhere\)"):
+            jm.vtk.write_series(
+                tmp_path / "dangling", jm.Model(scene, jm.SPQ(), jm.FLIP()), sol, overwrite=overwrite
+            )
+    assert a_file.read_text() == "MINE" and not (tmp_path / "nowhere").exists()
     paths = jm.vtk.write_series(tmp_path / "frames", jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == sorted(p.name for p in paths)
