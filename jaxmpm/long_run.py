@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import errno
 import json
 import os
 import pathlib
@@ -504,8 +505,23 @@ def _any_process(flag: bool) -> bool:
 
 
 def _drive(
-    model, dt_arr, saveat, state, rec: _Recorder, *, steps, chunk, out, checkpoint_every, progress, throw
+    model,
+    dt_arr,
+    saveat,
+    state,
+    rec: _Recorder,
+    *,
+    steps,
+    chunk,
+    out,
+    checkpoint_every,
+    progress,
+    throw,
+    new_out: bool = False,
 ) -> tuple[Solution, float, float]:
+    """Run ``rec``'s run from ``state`` in chunks to ``steps``, saving to ``out`` (with ``new_out``,
+    a file that did not exist before the run: one another process made there meanwhile is not
+    replaced, ``FileExistsError``, checked just before the first save)."""
     every = saveat.every
     dt = float(dt_arr)
     n_particles = rec.body.n
@@ -522,6 +538,15 @@ def _drive(
     def save():
         nonlocal held, writing
         writing = True
+        # out was checked before the run and not there. (Over several processes only the first
+        # writes, and the others may see its file: not checked there.)
+        if new_out and held is None and jax.process_count() == 1 and os.path.lexists(out):
+            raise FileExistsError(
+                errno.EEXIST,
+                "appeared while the run computed (another run writing it?), and is not replaced; this "
+                "run is not saved",
+                str(out),
+            )
         rec.save(out, state)
         writing = False
         held = int(state.step)
@@ -760,6 +785,7 @@ def run_timed(
         )
     params = None if unsaved is not None else scene.parameter_values()  # (nothing is saved then)
     out = None if out is None else _check_out(out, overwrite=overwrite)
+    new_out = out is not None and not os.path.lexists(out)  # made by this run: never over another's
     meta = dict(
         format=FORMAT,
         format_version=FORMAT_VERSION,
@@ -798,6 +824,7 @@ def run_timed(
         checkpoint_every=checkpoint_every,
         progress=progress,
         throw=throw,
+        new_out=new_out,
     )
 
 
@@ -1439,6 +1466,7 @@ def resume_timed(
     if out is None:  # the run goes on in its file: through a link, the file it names (the link kept)
         out = pathlib.Path(os.path.realpath(path)) if path.is_symlink() else path
     out = _check_out(out, overwrite=overwrite, own=path)
+    new_out = not os.path.lexists(out)  # another file than path, made by this run
     sol, meta, (model, dt_arr, saveat, state, rec) = _load(path)
     return *_drive(
         model,
@@ -1452,6 +1480,7 @@ def resume_timed(
         checkpoint_every=meta["checkpoint_every"],
         progress=progress,
         throw=throw,
+        new_out=new_out,
     ), meta
 
 

@@ -312,6 +312,37 @@ def test_interrupt_before_the_first_chunk_leaves_the_saved_file_as_it_was(tmp_pa
     assert str(e) == f"interrupted at step 0 of 95, before its first chunk finished: {kept}"
 
 
+def test_a_file_another_run_made_at_out_meanwhile_is_not_replaced(tmp_path, monkeypatch, capsys):
+    """out is checked before the run and written at its end: a file another process made there in
+    between (two runs given the same out) is kept, and this run says it was not saved."""
+    import os
+
+    from jaxmpm.cli import main
+
+    path = tmp_path / "run.npz"
+    real = long_run.wait
+
+    def wait(tree):  # the other run's file appears while this one computes
+        if not path.exists():
+            path.write_text("THE OTHER RUN")
+        return real(tree)
+
+    monkeypatch.setattr(long_run, "wait", wait)
+    with pytest.raises(FileExistsError, match=r"appeared while the run computed .* this run is not saved"):
+        long_run.run(SCENE, jm.SPQ(), out=path, **KW)
+    assert path.read_text() == "THE OTHER RUN" and os.listdir(tmp_path) == ["run.npz"]
+    path.unlink()
+    argv = ["run", "vibrating-bar", "cells=8", "--interpolator", "mpq", "--dt", "1e-4", "--steps", "30"]
+    assert main([*argv, "--chunk", "10", "--out", str(path), "--no-progress"]) == 74
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"jaxmpm: error: cannot write --out {path}: ")
+    assert "appeared while the run computed" in err[0] and path.read_text() == "THE OTHER RUN"
+    path.unlink()
+    monkeypatch.undo()
+    long_run.run(SCENE, jm.SPQ(), out=path, checkpoint_every=2, **KW)  # its own checkpoints: replaced
+    assert long_run.load(path)[1]["complete"]
+
+
 def test_interrupt_without_out(monkeypatch):
     interrupt_at(monkeypatch, 2)
     with pytest.raises(long_run.Interrupted) as info:
