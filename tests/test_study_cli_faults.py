@@ -63,6 +63,14 @@ def test_a_users_file_in_a_studys_own_folder_is_refused_before_it_runs(capsys, t
     assert len(ran) == 2 and (out / "table.md").read_text() == "the study's table"
 
 
+def test_a_folder_where_the_study_marks_its_folder_is_refused_before_it_runs(capsys, tmp_path, ran):
+    out = tmp_path / "talk"
+    (out / MARK).mkdir(parents=True)
+    for extra in ([], ["--overwrite"]):
+        usage(capsys, ["study", "talk", "--small", "--out", str(out), *extra], f"{MARK} is a folder")
+    assert ran == [] and (out / MARK).is_dir()
+
+
 def test_a_temporary_file_a_killed_run_left_is_the_studys_own(capsys, tmp_path, ran):
     out = tmp_path / "talk"
     out.mkdir()

@@ -117,7 +117,7 @@ def _claim(folder, name: str, outputs, overwrite: bool) -> None:
         names = sorted(p.name for p in path.iterdir() if p.name != MARK or (owner is None and p.exists()))
     except OSError as e:
         raise UsageError(f"--out {folder}: cannot list the folder ({e.strerror or e})") from None
-    folders = [n for n in names if n in outputs and (path / n).is_dir()]
+    folders = [n for n in names if (n in outputs or n == MARK) and (path / n).is_dir()]
     if folders:  # a file of the study could not be written there: said before the study runs
         raise UsageError(
             f"--out {folder}: {folders[0]} is a folder, where the study writes a file of that name; "
