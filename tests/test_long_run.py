@@ -392,6 +392,14 @@ def test_cli_sigterm_saves_the_last_chunk_like_ctrl_c_and_exits_143(tmp_path, mo
     ]
     assert long_run.load(path)[1]["step"] == 20 and sorted(os.listdir(tmp_path)) == ["run.npz"]
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the caller's handler, back
+    calls["n"] = 0  # resumed from 20: SIGTERM in its third chunk, saved at 40
+    assert main(["resume", str(path), "--no-progress"]) == 143
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"jaxmpm: terminated (SIGTERM): interrupted at step 40 of 95; saved in {path} "
+        f"(continue with `jaxmpm resume {path}`)"
+    ]
+    assert long_run.load(path)[1]["step"] == 40
 
 
 def test_cli_resume_interrupted_exits_130_and_continues(tmp_path, monkeypatch, capsys):

@@ -2,12 +2,11 @@
 
 Exit statuses: 0; 2 for a file that is missing or is not a saved run this jaxmpm can continue (one
 line naming the file and what is wrong); 3 for a run that broke down; 74 for a save that cannot be
-written (a full disk: the previous save is intact); 130 for Ctrl-C, after saving the last finished
-chunk to the file (one line saying at which step).
+written (a full disk: the previous save is intact); 130 for Ctrl-C (143 for SIGTERM), after saving
+the last finished chunk to the file (one line saying at which step).
 """
 
 import pathlib
-import sys
 
 import jaxmpm as jm
 
@@ -44,10 +43,11 @@ def command(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit status: 0, or 130 after Ctrl-C (the run saved up to its last finished chunk, and one
-        line on stderr saying so).
+        The exit status: 0.
 
     Raises:
+        jaxmpm.long_run.Interrupted: Ctrl-C or SIGTERM, the run saved up to its last finished chunk
+            (the command line answers with one line on stderr saying so, and status 130 or 143).
         UsageError: no such file, or not a saved run (one line naming the file and what is wrong).
         CannotWrite: the file cannot be written (the previous save is intact).
         Breakdown: the run broke down (now, or before it was saved).
@@ -57,9 +57,6 @@ def command(args) -> int:
         sol, compile_s, wall_s, meta = jm.long_run.resume_timed(
             args.file, progress=False if args.no_progress or not first else None
         )
-    except jm.long_run.Interrupted as e:
-        print(f"jaxmpm: {e}", file=sys.stderr)
-        return 130
     except (FileNotFoundError, ValueError) as e:
         raise UsageError(_one_line(e)) from None
     except OSError as e:  # e.g. the disk filled up while saving: the previous save is intact
