@@ -30,6 +30,10 @@ QUANTITY = {
 }
 
 
+_KNOWN = functools.reduce(operator.or_, QUANTITY)
+"""Every bit a check sets."""
+
+
 def describe(status: int | np.integer | jax.Array) -> list[str]:
     """The failures set in a status bitmask, in words.
 
@@ -57,8 +61,7 @@ def describe(status: int | np.integer | jax.Array) -> list[str]:
             )
         )
     status = int(status)
-    known = functools.reduce(operator.or_, QUANTITY)
-    if status < 0 or status & ~known:
+    if status < 0 or status & ~_KNOWN:
         raise ValueError(f"status must be an integer >= 0 of the bits {sorted(QUANTITY)}, got {status}")
     return [text for bit, text in QUANTITY.items() if status & bit]
 

@@ -270,6 +270,11 @@ def nodal_fields(model, state, setup=None) -> dict[str, np.ndarray]:
     _step.check_model(model)
     setup = eqx.filter_jit(_step.setup)(model) if setup is None else setup
     _step.check_belongs(model, setup, state)
+    return _nodal_fields(model, setup, state)
+
+
+def _nodal_fields(model, setup, state) -> dict[str, np.ndarray]:
+    """``nodal_fields`` of a model, setup and state already checked (each frame of a series)."""
     mass, velocity = _nodal(model, setup, state)
     return {"mass": np.asarray(mass), "velocity": _pad_vectors(np.asarray(velocity))}
 
@@ -473,7 +478,7 @@ def write_series(
             fields = particle_fields(state, solution.body)
             p, g = f"particles_{frame:05d}.vtk", f"grid_{frame:05d}.vtk"
             write_particles(stage(p), state.x, fields)
-            write_grid(stage(g), prepared.grid, nodal_fields(model, state, prepared))
+            write_grid(stage(g), prepared.grid, _nodal_fields(model, prepared, state))
             entries["particles"].append((t, p))
             entries["grid"].append((t, g))
         for kind, items in entries.items():
