@@ -235,17 +235,29 @@ def vacuum_generated(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
 
 
 @jax.jit
-def _waves(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
+def _wave_parts(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
+    """The star state, the shock speeds, the sound speeds of the four states and the kind of each wave."""
     p_s, u_s, rho_sl, rho_sr, vacuum = _star(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
     c_l, c_r = _sound_speed(rho_l, p_l, gamma), _sound_speed(rho_r, p_r, gamma)
     shock_l, shock_r = p_s > p_l, p_s > p_r
     z = (gamma - 1.0) / (2.0 * gamma)
     w = (gamma + 1.0) / (2.0 * gamma)
-    # Shock speeds and fan edges (Toro, section 4.4); each is used on its branch.
+    # Shock speeds (Toro, section 4.4), used on their branch.
     s_l = u_l - c_l * jnp.sqrt(w * p_s / p_l + z)
     s_r = u_r + c_r * jnp.sqrt(w * p_s / p_r + z)
-    c_sl = c_l * (p_s / p_l) ** z
-    c_sr = c_r * (p_s / p_r) ** z
+    # Sound speeds of the star states: isentropic behind a fan (whose tail is u* -/+ c*), from the
+    # Rankine-Hugoniot density behind a shock.
+    c_sl = jnp.where(shock_l, _sound_speed(rho_sl, p_s, gamma), c_l * (p_s / p_l) ** z)
+    c_sr = jnp.where(shock_r, _sound_speed(rho_sr, p_s, gamma), c_r * (p_s / p_r) ** z)
+    return p_s, u_s, rho_sl, rho_sr, c_sl, c_sr, shock_l, shock_r, s_l, s_r, c_l, c_r, vacuum
+
+
+def _waves(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma):
+    # The wave edges are chosen from the compiled parts, outside their program: within one program
+    # XLA's CPU backend computes a shock speed anew in each output that reads it, and may round the
+    # copies differently (a shock's head and tail 1 ulp apart).
+    parts = _wave_parts(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+    p_s, u_s, rho_sl, rho_sr, c_sl, c_sr, shock_l, shock_r, s_l, s_r, c_l, c_r, vacuum = parts
     nan = lambda a: jnp.where(vacuum, jnp.nan, a)
     return dict(
         p_star=p_s,
@@ -302,7 +314,9 @@ def riemann_solution(x, t, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, x0=0.0):
     ``rho = rho_l b^(2 / (gamma - 1))``, ``p = p_l b^(2 gamma / (gamma - 1))``,
     ``b = 2 / (gamma + 1) + (gamma - 1) (u_l - S) / ((gamma + 1) c_l)``; a right fan mirrors it.
     A point on a shock or on the contact takes the state on its right (the other wave edges are
-    continuous). When a vacuum forms every
+    continuous); a point put there from the speeds of ``riemann_waves`` (``x = x0 + S t``) is on it
+    in a plain call, which samples at those same numbers (inside ``jax.jit`` the speeds are computed
+    within the program and may differ from them in the last bit). When a vacuum forms every
     output is NaN (check ``vacuum_generated``).
 
     Args:
@@ -331,12 +345,13 @@ def riemann_solution(x, t, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, x0=0.0):
     check_real("t", t)
     check_positive("t", t)
     states = [_float(a) for a in (rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)]
-    return _solution(_float(x), _float(t), *states, _float(x0))
+    # The wave speeds of riemann_waves, the same numbers (its compiled program), so that a point put
+    # exactly on a wave it returns is sampled as documented.
+    return _sample(_float(x), _float(t), _waves(*states), *states, _float(x0))
 
 
 @jax.jit
-def _solution(x, t, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, x0):
-    wv = _waves(rho_l, u_l, p_l, rho_r, u_r, p_r, gamma)
+def _sample(x, t, wv, rho_l, u_l, p_l, rho_r, u_r, p_r, gamma, x0):
     c_l, c_r = _sound_speed(rho_l, p_l, gamma), _sound_speed(rho_r, p_r, gamma)
     S = (x - x0) / t
     gp, gm = gamma + 1.0, gamma - 1.0

@@ -446,3 +446,55 @@ def test_traced_bad_time_is_not_checked_and_gives_finite_meaningless_values():
     np.testing.assert_array_equal(np.asarray(out["p"]), [1.0, 0.1])
     with pytest.raises(ValueError, match=r"^t must be > 0, got 0\.0$"):
         riemann_solution(x, 0.0, *SOD, GAMMA)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_star_sound_speeds_are_those_of_the_star_states(case):
+    """``c_star_l``, ``c_star_r`` are ``sqrt(gamma p* / rho*_K)`` on either kind of wave: behind a
+    shock ``rho*_K`` is the Rankine-Hugoniot density, behind a rarefaction the isentropic one (where
+    the formula ``c_K (p* / p_K)^((gamma - 1) / (2 gamma))`` gives the same)."""
+    w = riemann_waves(*CASES[case], GAMMA)
+    for side in ("l", "r"):
+        expected = math.sqrt(GAMMA * float(w["p_star"]) / float(w[f"rho_star_{side}"]))
+        np.testing.assert_allclose(float(w[f"c_star_{side}"]), expected, rtol=1e-14, err_msg=side)
+
+
+def test_sod_right_star_sound_speed():
+    """Sod's shocked gas: ``sqrt(1.4 * 0.30313 / 0.26557) = 1.26411`` (Toro's Table 4.3 star state);
+    the isentropic formula would give 1.23998."""
+    w = riemann_waves(*SOD, GAMMA)
+    np.testing.assert_allclose(float(w["c_star_r"]), 1.264113483, rtol=1e-9)
+
+
+def _shock_cases():
+    rng = np.random.default_rng(1)
+    cases = [TEST_5, TORO["3-left-blast"][0], TORO["4-right-blast"][0], SOD]
+    while len(cases) < 60:
+        rho_l, rho_r = 10.0 ** rng.uniform(-2, 2, 2)
+        p_l, p_r = 10.0 ** rng.uniform(-3, 3, 2)
+        u_l, u_r = rng.normal(0.0, 5.0, 2)
+        data = tuple(float(a) for a in (rho_l, u_l, p_l, rho_r, u_r, p_r))
+        w = riemann_waves(*data, GAMMA)
+        if not bool(w["vacuum"]) and (bool(w["shock_l"]) or bool(w["shock_r"])):
+            cases.append(data)
+    return cases
+
+
+def test_a_point_exactly_on_a_shock_takes_the_state_on_its_right():
+    """A shock's head and tail are the same number, the speeds are ordered, and a point at ``x = S t``
+    with ``S`` the shock speed ``riemann_waves`` returns takes the state on the shock's right, as
+    documented: Toro's test 5 and random shocks."""
+    wrong = []
+    for data in _shock_cases():
+        w = riemann_waves(*data, GAMMA)
+        speeds = [float(w[k]) for k in ("head_l", "tail_l", "contact", "tail_r", "head_r")]
+        assert speeds == sorted(speeds), (data, speeds)
+        for side, right in (("l", float(w["rho_star_l"])), ("r", data[3])):
+            if not bool(w[f"shock_{side}"]):
+                continue
+            assert float(w[f"head_{side}"]) == float(w[f"tail_{side}"]), (data, side)
+            S = float(w[f"head_{side}"])
+            got = float(riemann_solution(S, 1.0, *data, GAMMA)["rho"])
+            if got != right:
+                wrong.append((data, side, got, right))
+    assert not wrong, wrong
