@@ -424,8 +424,8 @@ def gas_radial(
     atol: float = 1e-10,
     max_steps: int = 200_000,
     viscosity: bool = False,
-    q_quadratic=1.0,
-    q_linear=0.5,
+    q_quadratic=None,
+    q_linear=None,
 ) -> RadialSolution:
     """Solve the radial expansion of a gas charge at rest against the atmosphere.
 
@@ -452,9 +452,10 @@ def gas_radial(
         viscosity: add the artificial viscosity ``Q`` of the module's docstring (static: the solve
             without it is the inviscid scheme, unchanged). Off by default; on for a reference of
             the profiles past the shock.
-        q_quadratic: its quadratic coefficient ``c_2`` (>= 0; used only with ``viscosity``).
-        q_linear: its linear coefficient ``c_1`` (>= 0; used only with ``viscosity``), which damps
-            the ringing behind a shock.
+        q_quadratic: its quadratic coefficient ``c_2`` (>= 0; 1 if not given), only with
+            ``viscosity``.
+        q_linear: its linear coefficient ``c_1`` (>= 0; 0.5 if not given), which damps the ringing
+            behind a shock, only with ``viscosity``.
 
     Returns:
         The ``RadialSolution`` (its ``dissipated`` zero without the viscosity).
@@ -462,7 +463,8 @@ def gas_radial(
     Raises:
         ValueError: bad ``P0``, ``gamma``, ``p_atm``, ``rho0``, ``radius``, ``dim``, ``ts``,
             ``cells``, ``rtol``, ``atol``, ``max_steps``, ``viscosity``, ``q_quadratic`` or
-            ``q_linear``, named in the message (each number parameter is one number: ``jax.vmap``
+            ``q_linear`` (given without ``viscosity=True``, which would ignore it), named in the
+            message (each number parameter is one number: ``jax.vmap``
             over ``gas_radial`` solves several charges); or the solve to ``ts[-1]`` needs more than
             ``max_steps`` steps (under ``jax.jit``, ``jax.grad`` or ``jax.vmap`` that, and any other
             failure of the solver, is diffrax's runtime error).
@@ -490,9 +492,17 @@ def gas_radial(
     if not isinstance(viscosity, bool):
         raise ValueError(f"viscosity must be True or False, got {viscosity!r}")
     for name, value in (("q_quadratic", q_quadratic), ("q_linear", q_linear)):
+        if value is None:
+            continue
         check_real(name, value)
         check_scalar(name, value, batch)
         check_nonnegative(name, value)
+        if not viscosity:
+            raise ValueError(
+                f"{name} is a coefficient of the artificial viscosity: give viscosity=True with it"
+            )
+    q_quadratic = 1.0 if q_quadratic is None else q_quadratic
+    q_linear = 0.5 if q_linear is None else q_linear
     _check_times(ts)
 
     dtype = jnp.result_type(float)

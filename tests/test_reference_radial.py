@@ -265,3 +265,14 @@ def test_a_tolerance_is_one_number(name):
     kwargs = GAS | dict(dim=2, ts=TS, cells=10, **{name: [1e-8]})
     with pytest.raises(ValueError, match=rf"^{name} must be one number, got an array of shape \(1,\)$"):
         raw(reference.gas_radial)(**kwargs)
+
+
+@pytest.mark.parametrize("name", ["q_quadratic", "q_linear"])
+def test_a_viscosity_coefficient_without_the_viscosity_is_refused(name):
+    """Without ``viscosity=True`` the coefficients are not used: one given there is refused by name,
+    rather than left out of a solve the caller meant it for."""
+    kwargs = GAS | dict(dim=2, ts=TS, cells=10, **{name: 2.0})
+    with pytest.raises(
+        ValueError, match=rf"^{name} is a coefficient of the artificial viscosity: give viscosity=True"
+    ):
+        reference.gas_radial(**kwargs)
