@@ -1788,13 +1788,10 @@ class Information:
             where the information is singular, one whose unit vector is not orthogonal to its null
             space).
         """
-        info = self.fisher(t_end, samples, noise)
-        w = np.linalg.eigvalsh(info)
-        if not w[0] > 1e-14 * max(w[-1], 1e-300):
-            s = self.noise if noise is None else float(noise)
-            P, _ = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)] / s)
-            return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(P)))}
-        return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(np.linalg.inv(info))))}
+        self.fisher(t_end, samples, noise)  # checks the window and the noise
+        s = self.noise if noise is None else float(noise)
+        P, _ = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)] / s)
+        return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(P)))}
 
     def correlation(self, t_end: float | None = None, samples: int | None = None) -> np.ndarray:
         """The correlation matrix a fit of this plan would have (independent of the noise level).
@@ -1810,15 +1807,14 @@ class Information:
             ValueError: the plan (or its window) does not determine the constants: their standard
                 errors are infinite (``std``), so their correlations are undefined.
         """
-        info = self.fisher(t_end, samples, 1.0)
-        w = np.linalg.eigvalsh(info)
-        if not w[0] > 1e-14 * max(w[-1], 1e-300):
+        self.fisher(t_end, samples, 1.0)  # checks the window
+        C, rank = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)])
+        if rank < len(self.names):
             raise ValueError(
                 f"this plan does not determine {_and(self.names)}: the Fisher information is singular, "
                 "so the standard errors are infinite (std) and the correlations undefined; observe "
                 "longer or more often, or determine fewer constants"
             )
-        C = np.linalg.inv(info)
         s = np.sqrt(np.diag(C))
         return C / np.outer(s, s)
 

@@ -427,6 +427,31 @@ def test_a_singular_plan_gives_the_determined_constant_its_standard_error():
     assert np.isinf(std["P0"]) and np.isinf(std["p_atm"])
 
 
+def test_a_plan_in_any_units_has_the_same_correlation():
+    """Whether a plan determines its constants does not depend on their units: a regular plan whose
+    Jacobian columns differ in scale by 1e8 (a pressure in Pa beside an exponent) has the
+    correlation of the same plan in scaled units, and standard errors that scale with the units.
+    (The test on the unscaled information, ratio of eigenvalues 1e-16 here, called it singular.)"""
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((12, 3))  # a regular plan, condition ~ 3
+    units = np.array([1.0, 1e-8, 1e-7])  # d x / d P0 per Pa, d x / d p_atm per Pa
+
+    def plan(J):
+        return cal.Information(
+            names=("gamma", "P0", "p_atm"),
+            values={"gamma": 1.4, "P0": 3e5, "p_atm": 1e5},
+            ts=np.linspace(0.0, 1e-3, 12),
+            jacobian=J,
+            noise=0.01,
+        )
+
+    scaled, si = plan(A), plan(A * units)
+    np.testing.assert_allclose(si.correlation(), scaled.correlation(), rtol=1e-10, atol=1e-12)
+    std_scaled, std_si = scaled.std(), si.std()
+    for k, u in zip(("gamma", "P0", "p_atm"), units):
+        assert std_si[k] == pytest.approx(std_scaled[k] / u, rel=1e-10)
+
+
 def test_a_plan_refuses_a_window_before_its_first_time():
     """``Information.std`` of a window that holds no observation is refused, not a silent inf."""
     info = cal.Information(
