@@ -31,7 +31,8 @@ step shortened: a broken run's loss is never used (``Fit.rejected`` lists every 
 ``"lbfgs"`` (``optax.lbfgs`` with its zoom line search, gradients in reverse mode) and ``"adam"``
 are the other methods. A broken trial gives L-BFGS a NaN loss, which its line search refuses; Adam,
 which has no line search, refuses a step whose point breaks down and takes the step from the point
-before again, half as long (up to 20 times, after which the start stops). Several starts run at once
+before again, half as long (20 halvings in a row stop the start); a step that does not break down lets
+the next grow back, doubled up to its full length. Several starts run at once
 under ``vmap``; the lowest final loss wins.
 
 **Uncertainty at the optimum.** From ``J`` at the best point: the Gauss-Newton covariance
@@ -577,11 +578,11 @@ class _Model:
         r = self._batched(self._r, theta, start_theta, data)
         return r, self.admitted(start_theta, theta, np.all(np.isfinite(r), axis=1))
 
-    def why(self, values: np.ndarray) -> tuple[str, dict | None]:
+    def why(self, values: np.ndarray, digits: int = 6) -> tuple[str, dict | None]:
         """A plain run at ``values`` (physical): what broke (the step, particle and quantity), or why
-        the scene refuses them."""
+        the scene refuses them (the values written to ``digits`` significant digits)."""
         trial = dict(zip(self.names, (float(v) for v in values)))
-        where = ", ".join(f"{k}={v:.6g}" for k, v in trial.items())
+        where = ", ".join(f"{k}={v:.{digits}g}" for k, v in trial.items())
         refused = self.refused(values)
         if refused is not None:  # a point the fit's variables reach, not one the user gave
             return f"the fit reached {where}, where {type(self.scene).__name__} {_NO_RUN}: {refused}", None
@@ -633,8 +634,10 @@ def calibrate(
         dt: the model's time step (fixed through the fit; ``cfl_limit`` still guards it).
         method: ``"lm"`` (Levenberg-Marquardt, the default), ``"lbfgs"`` or ``"adam"``.
         iterations: the most iterations; the fit stops earlier when it converges (``lm``: the loss
-            falls below ``tol``, a step would lower it by less than 1e-8 of itself, or a step that
-            would lower it by less than 1e-6 of itself does not; the others: no
+            falls below ``tol``, a step would lower it by less than 1e-8 of itself, a step that
+            would lower it by less than 1e-6 of itself does not, or an accepted step lowers it by
+            less than 1e-8 of itself where the Gauss-Newton step from there would gain less than
+            1e-6 of it; the others: no
             start improved by 1e-9 of its loss in 3 iterations, none of which, for Adam, went back
             from a point that broke down).
         learning_rate: Adam's step in ``theta`` (default 0.05); only with ``method="adam"``.
@@ -1100,6 +1103,13 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, wher
             | (np.max(np.abs(delta), axis=1) <= 1e-12)
             | (2.0 * cost_t / (data.shape[1] * L * L) <= tol)
         )
+        # A tiny step is convergence only where Gauss-Newton sees little more to gain from its point
+        # (as little as the loss's roughness hides, 1e-6 of the cost). A step made tiny by damping
+        # that trials which broke down have raised is not: the fit goes on, and those trials decide.
+        for b in np.flatnonzero(small & (2.0 * cost_t / (data.shape[1] * L * L) > tol)):
+            A_t, g_t = J_t[b].T @ J_t[b], J_t[b].T @ r_t[b]
+            step = -np.linalg.lstsq(A_t, g_t, rcond=None)[0]
+            small[b] = -0.5 * float(g_t @ step) <= 1e-6 * cost_t[b]
         theta = np.where(accept[:, None], trial, theta)
         r = np.where(accept[:, None], r_t, r)
         J = np.where(accept[:, None, None], J_t, J)
@@ -1135,8 +1145,8 @@ def _levenberg_marquardt(model, start_theta, data, iterations, tol, L, bar, wher
 
 
 _HALVINGS = 20
-"""Adam: how many times a step whose point broke down is halved before the start is given up."""
-_SHORTEST = 2.0**-_HALVINGS
+"""Adam: how many times in a row a step from one point is halved, its point having broken down, before
+the start is given up."""
 _QUIET = 4
 """Adam: iterations without a step gone back before the fit may stop for lack of progress."""
 
@@ -1185,13 +1195,17 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
     frozen: dict[int, np.ndarray] = {}
     rejected: list[dict] = []
     why_left = 8  # the first broken trials get their reason (a plain run each)
-    scale = np.ones(B)  # Adam: 2^-k after k steps from the same point broke down
+    # Adam: the scale of the next step; that of the step that reached the current point; steps in a
+    # row from one point whose point broke down; whether the current point is one gone back to
+    scale, made = np.ones(B), np.ones(B)
+    halvings, retry = np.zeros(B, dtype=int), np.zeros(B, dtype=bool)
     last = None  # Adam: the previous iteration's point, state and loss, to go back to
     last_back = -_QUIET  # the last iteration that went back
     history = []
     it = 0
     for it in range(1, iterations + 1):
         where.update(iteration=it, loss=_lowest(history[-1]) if history else float("nan"))
+        used = scale
         new_theta, new_state, value = computed(
             update_all, theta, state, run_start, run_data, jnp.asarray(scale, dtype=dtype)
         )
@@ -1201,7 +1215,7 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
         if method == "adam" and last is not None:
             # the point this iteration reached broke down: refuse it, and step from the previous one
             # again, half as far (a broken run's loss is never used)
-            back = broke & (scale > _SHORTEST)
+            back = broke & (halvings < _HALVINGS)
             broke &= ~back
             for b in np.flatnonzero(back):
                 values = model.physical(np.asarray(run_start[b]), np.asarray(theta[b]))
@@ -1226,8 +1240,13 @@ def _optax(model, start_theta, data, method, iterations, learning_rate, tol, L, 
         if not alive.any():
             break
         if method == "adam":
+            # Gone back: the step that reached the broken point, halved. At a point gone back to,
+            # that halved step is under way. Else the step that reached this point did not break
+            # down: the next may be twice the one under way (up to the full step).
+            halvings = np.where(back, halvings + 1, np.where(retry, halvings, 0))
+            scale = np.where(back, 0.5 * made, np.where(retry, scale, np.minimum(1.0, 2.0 * used)))
+            made, retry = used, back
             if back.any():
-                scale = np.where(back, 0.5 * scale, scale)
                 last_back = it
                 mask = jnp.asarray(back)
 
@@ -1469,20 +1488,25 @@ def _blocked_message(
 ) -> str:
     """Why start ``best`` stopped where every step toward a lower loss is a run that breaks down, and
     what to change."""
-    where = ", ".join(f"{k}={v:.6g}" for k, v in fitted.items())
     broken = [e for e in run["rejected"] if e["start"] == best and e["broke"]]
-    if broken and "why" not in broken[-1]:
-        broken[-1]["why"], broken[-1]["failure"] = model.why(np.array(list(broken[-1]["values"].values())))
     if broken:
-        why, failure = broken[-1]["why"], broken[-1].get("failure")
         values = broken[-1]["values"]
     else:  # an L-BFGS or Adam fit: the Gauss-Newton step from the best point is the broken trial
         theta = run["theta"][best]
         step = 0.0625 * _gauss_newton_step(run["r"][best], run["J"][best])
         start = np.log(np.array(list(fitted.values())) - model.off) - theta
-        phys = model.physical(start, theta + step)
-        why, failure = model.why(phys)
-        values = dict(zip(model.names, (float(v) for v in phys)))
+        values = dict(zip(model.names, (float(v) for v in model.physical(start, theta + step))))
+    # the point and the trial past it written to as many digits as tell them apart (6 at least)
+    digits = next(
+        (d for d in range(6, 17) if any(f"{fitted[k]:.{d}g}" != f"{values[k]:.{d}g}" for k in fitted)), 17
+    )
+    where = ", ".join(f"{k}={v:.{digits}g}" for k, v in fitted.items())
+    if broken and ("why" not in broken[-1] or digits > 6):
+        broken[-1]["why"], broken[-1]["failure"] = model.why(np.array(list(values.values())), digits)
+    if broken:
+        why, failure = broken[-1]["why"], broken[-1].get("failure")
+    else:
+        why, failure = model.why(np.array(list(values.values())), digits)
     advice = "choose starts nearer the data, or reduce dt"
     if failure is None and model.refused(np.array(list(values.values()))) is not None:
         reason, todo = _out_of_range(model)

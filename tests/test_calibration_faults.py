@@ -324,6 +324,51 @@ def test_a_fit_inside_the_range_does_not_warn_of_the_edge():
     assert fit.fitted["gamma"] == pytest.approx(1.3, rel=1e-6) and fit.warning is None
 
 
+# -- a fit held back by runs that break down -------------------------------------------------------------
+
+
+def _behind_the_stable_limit():
+    """Data of a slab whose gamma = 1.4, P0 = 3e5 need a CFL number of 0.377 at the step ``dt``; the
+    model runs with ``cfl_limit=0.35``, so the way from the start (gamma 1.3, P0 2.6e5) to the data
+    ends in runs that break down (the step beyond the stable limit), from about gamma 1.30."""
+    slab = dict(cells=8, h=1 / 8, pad=48)
+    truth = jm.GasSlab(gamma=1.4, P0=3e5, **slab)
+    dt = 0.2 * float(truth.h) / float(truth.wave_speed)
+    x = np.asarray(cal.trajectory(truth, jm.CPDI(), TS, dt=dt))
+    return jm.GasSlab(**slab), x, dt, dict(starts=dict(gamma=1.3, P0=2.6e5), cfl_limit=0.35, progress=False)
+
+
+@pytest.mark.slow
+def test_levenberg_marquardt_held_back_by_breakdowns_says_so():
+    """Levenberg-Marquardt's damping, raised by the trials that broke down, shortens its steps until
+    one that is accepted gains almost nothing: that is not convergence while Gauss-Newton still
+    predicts nearly the whole loss away (99.97% here). The fit cannot reach its best point, and says
+    so (it returned converged=True, loss 0.0246, with no word of the breakdowns)."""
+    model, x, dt, kw = _behind_the_stable_limit()
+    with pytest.raises(cal.CalibrationError, match="the fit cannot reach its best point"):
+        cal.calibrate(model, jm.CPDI(), TS, x, dt=dt, iterations=100, **kw)
+
+
+@pytest.mark.slow
+def test_adam_goes_back_from_a_breakdown_without_counting_earlier_ones():
+    """Adam halves a step whose point broke down and goes back; an accepted step lets the step grow
+    again, and only 20 halvings in a row from one point give the start up. Here the 20 halvings came
+    over 54 iterations from 17 points, each followed by steps that lowered the loss: the start was
+    reported as broken down ('every start broke down', at a point whose run is fine)."""
+    model, x, dt, kw = _behind_the_stable_limit()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", cal.CalibrationWarning)
+        try:
+            fit = cal.calibrate(model, jm.CPDI(), TS, x, dt=dt, method="adam", iterations=60, **kw)
+        except cal.CalibrationError as e:
+            assert "every start broke down" not in str(e), str(e)
+            assert "the fit cannot reach its best point" in str(e), str(e)
+            return
+    assert not fit.failed_starts
+    assert fit.loss < 0.0482  # the start's loss; every point the fit stood on ran
+    jm.simulate(jm.GasSlab(**{**model.parameter_values(), **fit.fitted}), jm.CPDI(), dt=dt, steps=1)
+
+
 # -- an unidentifiable fit -------------------------------------------------------------------------------
 
 
