@@ -120,3 +120,31 @@ def test_stability_tables_name_every_failed_quantity():
     assert "| MPQ | 0 | tension@12 |" in stability.detonation_markdown([r])
     r2 = dict(r, status=st_bits.PRODUCTS_TENSION | st_bits.NEGATIVE_ENERGY)
     assert "| MPQ | 0 | e<0@12 |" in stability.detonation_markdown([r2])
+
+
+@pytest.mark.parametrize(
+    "given, used",
+    [
+        (None, ("FLIP",)),
+        (("FLIP", "PIC", "APIC"), ("FLIP", "PIC", "APIC")),
+        (["FLIP", "PIC", "APIC"], ("FLIP", "PIC", "APIC")),
+        (["PIC"], ("PIC",)),
+    ],
+)
+def test_the_shock_cases_run_the_transfers_given(tmp_path, monkeypatch, given, used):
+    """The shock cases run FLIP unless ``transfers`` is given, then those it names, whether a tuple or a
+    list (all three as a tuple ran FLIP alone)."""
+    ran = []
+    monkeypatch.setattr(
+        convergence, "run_shock_case", lambda case, method, transfer: ran.append(transfer) or []
+    )
+    monkeypatch.setattr(convergence, "shock_orders", lambda rows: [])
+    monkeypatch.setattr(convergence, "shock_markdown", lambda rows, cases: "")
+    convergence.main(str(tmp_path), small=True, transfers=given, methods=("CPDI",), scenes=["noh"])
+    assert tuple(ran) == used
+
+
+@pytest.mark.parametrize("name", ["transfers", "methods", "scenes"])
+def test_an_empty_list_of_names_is_refused(tmp_path, name):
+    with pytest.raises(ValueError, match=rf"^{name} must be a sequence of names, one or more of"):
+        convergence.main(str(tmp_path), small=True, **{name: []})

@@ -599,7 +599,8 @@ def main(
     Args:
         out: the output directory (created).
         small: FLIP only, SPQ, CPDI and MPQ, coarser grids.
-        transfers: labels in ``TRANSFERS`` to run (default: all, or FLIP when ``small``).
+        transfers: labels in ``TRANSFERS`` to run (default: all, or FLIP when ``small``; the shock
+            cases run FLIP unless ``transfers`` is given).
         methods: labels in ``METHODS`` to run (default: all, or SPQ, CPDI and MPQ when ``small``).
         scenes: case names to run (default: all).
         release: called after each case, whose compiled programs (one per resolution) are not used
@@ -625,7 +626,7 @@ def main(
     ):
         if given is None:
             continue
-        if isinstance(given, str) or not all(isinstance(g, str) for g in given):
+        if isinstance(given, str) or not given or not all(isinstance(g, str) for g in given):
             raise ValueError(f"{name} must be a sequence of names, one or more of {allowed}, got {given!r}")
         unknown = [g for g in given if g not in allowed]
         if unknown:
@@ -634,13 +635,14 @@ def main(
     outdir.mkdir(parents=True, exist_ok=True)
     all_cases = [c for c in cases(small) if scenes is None or c.name in scenes]
     all_shocks = [c for c in shock_cases(small) if scenes is None or c.name in scenes]
-    transfers = transfers or (("FLIP",) if small else tuple(TRANSFERS))
-    methods = methods or (("SPQ", "CPDI", "MPQ") if small else tuple(METHODS))
+    shock_transfers = ("FLIP",) if transfers is None else tuple(transfers)
+    transfers = tuple(transfers) if transfers is not None else ("FLIP",) if small else tuple(TRANSFERS)
+    methods = tuple(methods) if methods is not None else ("SPQ", "CPDI", "MPQ") if small else tuple(METHODS)
     result = {}
     if all_cases:
         result = _ladder(outdir, all_cases, methods, transfers, release)
     if all_shocks:
-        result.update(_shocks(outdir, all_shocks, methods, transfers, release))
+        result.update(_shocks(outdir, all_shocks, methods, shock_transfers, release))
     return result
 
 
@@ -650,14 +652,12 @@ def _write_csv(path: pathlib.Path, table: list[dict]) -> None:
 
 
 def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
-    """Run the shock cases (FLIP only, unless ``transfers`` names others) and, with an Euler case, the
-    energy drift at its resolutions; write ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and
-    ``shocks.json``."""
-    used = transfers if transfers != tuple(TRANSFERS) else ("FLIP",)
+    """Run the shock cases with ``transfers`` and, with an Euler case, the energy drift at its
+    resolutions; write ``shocks.md``, ``shocks.csv``, ``shock_runs.csv`` and ``shocks.json``."""
     rows = []
     for case in all_cases:
         for method in methods:
-            for transfer in used:
+            for transfer in transfers:
                 rows.extend(run_shock_case(case, method, transfer))
         if release is not None:
             release()
@@ -674,7 +674,7 @@ def _shocks(outdir, all_cases, methods, transfers, release) -> dict:
         "least-squares slope over the resolutions that finished with a non-zero error (in brackets: the "
         "finest pair, - where one of its runs broke down or has an error of exactly 0). Ideal "
         "gas with the energy equation, artificial viscosity (c_quad 2, c_lin 0.2), 2 particles per "
-        f"cell, {', '.join(used)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
+        f"cell, {', '.join(transfers)}, USL, float64, dt = CFL h / max(c + |v|) every step. Energy drift: "
         "the total (kinetic plus internal) energy's relative change at the finest resolution. The "
         "detonation (`jaxmpm.Detonation`): relative RMS errors of F and of the pressure "
         "(`jaxmpm.metrics.pressure_error`) against the exact CJ-Taylor wave over the burnt particles "
