@@ -276,3 +276,22 @@ def test_the_multid_tables_give_no_number_for_a_run_that_broke_down():
     assert "| cpdi | 14 | none | 0.5 | 0.7 | 5.7 |" in text
     assert "| mpq | 14 | step 15: F <= 0 (the particle's domain inverted) | - | - | - |" in text
     assert "| mpq | 4 | 5 | 1.00 | 0.10 | - | broken down: F <= 0 at step 3 |" in text
+
+
+def test_the_multid_large_run_is_headed_by_its_particle_count():
+    """The large 2D run's heading gives the particles it ran (1,024 with ``--small``, 99,856 in full),
+    not 'about 100,000' whatever ran."""
+    row = dict(interpolator="spq", steps=5, compile_s=1.0, run_s=0.1, mparticle_steps_per_s=0.2)
+    blast = dict(t=[0.0], gap_own=[0.0], gap_implied=[0.0], steps_taken=1, failure=None, energy=1.0)
+    blast.update(params={}, dt=1e-5)
+    for particles, heading in ((1024, "1,024"), (99856, "99,856")):
+        result = dict(
+            first_step=[],
+            blast=dict(cpdi=blast, mpq=blast),
+            large_2d=[dict(row, particles=particles, failure=None, F_max_rel=0.1)],
+            machine="m",
+            wall_s=1.0,
+        )
+        text = multid._markdown(result)
+        assert f"## 2D run of {heading} particles (gas expansion, artificial cells)" in text
+        assert "about 100,000" not in text

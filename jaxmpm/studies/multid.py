@@ -396,7 +396,7 @@ def _markdown(result: dict) -> str:
         )
     lines += [
         "",
-        "## 2D run of about 100,000 particles (gas expansion, artificial cells)",
+        f"## 2D run of {result['large_2d'][0]['particles']:,} particles (gas expansion, artificial cells)",
         "",
         "| interpolator | particles | steps | compile s | run s | M particle-steps/s | F max rel. error |",
         "|---|---|---|---|---|---|---|",
