@@ -36,6 +36,8 @@ def test_study_gurney_small(tmp_path, capsys):
         # the ring is driven out, below Gurney's terminal velocity, and has begun to expand
         assert 330.0 < r[last] < 420.0 < r["gurney"], (r["interpolator"], r[last])
         assert r[f"r_{cfg['times'][-1]:g}"] > r["r0"]
+        # R0 is the ring's mean radius at rest, taken as its mean radius at any time (r / R0 = 1 at rest)
+        assert r["r0"] == pytest.approx(r["r_ring"][0], rel=1e-12)
         assert r["t"][0] == 0.0 and r["t"][-1] == pytest.approx(cfg["t_end"])
         assert r["v_ring"][-1] == pytest.approx(r[last], rel=1e-12)
     hydro, strong = result["strength"]

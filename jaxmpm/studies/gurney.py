@@ -118,7 +118,7 @@ def run(cells: int, name: str, t_end: float, times, remedied: bool = True, stren
         gurney=float(scene.gurney_velocity()),
         mass_ratio=float(scene.mass_ratio),
         mass_ratio_particles=float(m.sum() / np.asarray(body.m)[~ring].sum()),
-        r0=float(scene.R) * (1.0 + scene.split) / 2.0,
+        r0=float(np.linalg.norm(np.asarray(body.X)[ring], axis=-1) @ m / m.sum()),
     )
     for t in times:  # linear between the saved frames (about a microsecond apart)
         ok = fail is None and t <= ts[keep][-1]
@@ -234,8 +234,9 @@ def _markdown(result: dict) -> str:
         f"formula with sqrt(2E) = 2.70 km/s gives {first['gurney']:.1f} m/s, the velocity the tube tends "
         "to as the products expand without limit (a model accurate to a few per cent, without the metal's "
         "strength). The ring's velocity is its radial momentum over its mass; r / R0 is its mean radius "
-        "over that at rest (4.5 cm). The ring's spread over the angle is the standard deviation of its "
-        f"radial velocity over {SECTORS} equal sectors of the quarter, over its mean, at the last time. The "
+        "(weighted by mass) over that of its particles at rest (the annulus 4-5 cm's is 4.52 cm). The "
+        "ring's spread over the angle is the standard deviation of its radial velocity over "
+        f"{SECTORS} equal sectors of the quarter, over its mean, at the last time. The "
         "angular spread is that of the radial velocity of the whole body (products and ring) at equal "
         "reference radius, detrended, RMS over radial bins of one cell; both are 0 for a radially "
         "symmetric motion. folded counts the CPDI, MPQ or CPDI2 domains turned inside out. A run that "
