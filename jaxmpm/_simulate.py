@@ -701,7 +701,8 @@ def simulate(
         cfl: with ``t_end``, the CFL number of each step (> 0; ``None``: 0.5).
         max_steps: with ``t_end``, the length of the scan (>= 1), static.
         transfer: ``FLIP()`` (default), ``PIC()`` or ``APIC()``.
-        artificial_cells: layers of artificial cells at each free end (``jaxmpm.boundaries``).
+        artificial_cells: layers of artificial cells at each free end (``jaxmpm.boundaries``; 0 on a
+            scene without a free face, where they would add nothing).
         saveat: what to keep besides the final state (default: nothing). With ``t_end``, the saved
             times ``Solution.ts`` are those of the saved steps.
         cfl_limit: fail a step whose ``dt`` exceeds ``cfl_limit h / max(c + |v|)``; ``None`` to

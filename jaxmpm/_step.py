@@ -291,6 +291,11 @@ class Model(eqx.Module):
         # the checks simulate makes of the same arguments, with the same messages
         check_parts(self.scene, self.interpolator, self.transfer, self.viscosity)
         check_int("artificial_cells", self.artificial_cells, 0)
+        if self.artificial_cells > 0 and "free" not in (self.scene.left, self.scene.right):
+            raise ValueError(
+                f"artificial_cells adds cells outside the body's free faces, and {type(self.scene).__name__} "
+                f"has none (left={self.scene.left!r}, right={self.scene.right!r}): use artificial_cells=0"
+            )
         check_cfl_limit(self.cfl_limit)
         if self.devices is not None:  # (simulate takes a count; a Model holds the devices)
             check_devices(self.devices, count=False)

@@ -301,6 +301,31 @@ def test_artificial_cells_and_tractions_need_a_box():
     assert int(sol.status) == 0
 
 
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: jm.Interface(),
+        lambda: jm.Manufactured(ends="wall"),
+        lambda: jm.Bodies(
+            parts=(jm.Region(Box(0.0, 10.0), GAS, 1.0),), cells=10, h=0.1, left="symmetry", right="wall"
+        ),
+    ],
+    ids=["interface", "manufactured-walls", "bodies-symmetry-wall"],
+)
+def test_artificial_cells_need_a_free_face(make):
+    """The artificial layer goes outside the body's free faces: on a scene with none it would add
+    nothing, and a run asked for with it ran as without. Refused before anything is traced."""
+    scene = make()
+    with pytest.raises(
+        ValueError, match=r"^artificial_cells adds cells outside the body's free faces, and "
+    ) as info:
+        jm.simulate(scene, jm.MPQ(), dt=1e-4, steps=1, artificial_cells=1)
+    assert f"left={scene.left!r}, right={scene.right!r}" in str(info.value)
+    assert "use artificial_cells=0" in str(info.value)
+    with pytest.raises(ValueError, match=r"^artificial_cells adds cells outside the body's free faces"):
+        jm.Model(scene, jm.MPQ(), jm.FLIP(), artificial_cells=2)
+
+
 def test_energy_scene_with_one_region_material_needs_regions():
     class GasOnly(jm.AbstractScene):
         name = "x"
