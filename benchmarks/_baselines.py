@@ -103,7 +103,8 @@ def boundary_stress(t: float) -> float:
 
 
 def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
-    """A Python loop of NumPy steps, ``np.bincount`` scatters.
+    """A Python loop of NumPy steps, ``np.bincount`` scatters (which sum in float64: in float32 each
+    nodal sum is rounded to float32, and the step goes on in float32).
 
     With ``fold``, also what jaxmpm's step does at a free end: node masses under ``256 eps m`` count
     as empty, and force on an empty node moves to its neighbour with mass (``_step.fold_massless``).
@@ -132,6 +133,10 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
     x_tr = np.array([0.0, L["cells"] * L["h"]], f)
     lo, hi = grid_span(L)
     error = None
+
+    def scatter(idx, values):  # bincount sums in float64 whatever the values: the sums in the run's type
+        return np.bincount(idx, values, nodes).astype(f, copy=False)
+
     t0 = time.perf_counter()
     try:
         for k in range(steps):
@@ -146,11 +151,11 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
             w1 = (s - i).astype(f)
             w0 = 1 - w1
             sig = -(P0 * F**-gamma - p_atm)
-            mass = np.bincount(i, w0 * m, nodes) + np.bincount(i + 1, w1 * m, nodes)
-            mom = np.bincount(i, w0 * m * v, nodes) + np.bincount(i + 1, w1 * m * v, nodes)
+            mass = scatter(i, w0 * m) + scatter(i + 1, w1 * m)
+            mom = scatter(i, w0 * m * v) + scatter(i + 1, w1 * m * v)
             fi = sig * V0 * F / h
-            force = np.bincount(i, fi, nodes) - np.bincount(i + 1, fi, nodes)
-            force += np.bincount(j, u0 * trac, nodes) + np.bincount(j + 1, u1 * trac, nodes)
+            force = scatter(i, fi) - scatter(i + 1, fi)
+            force += scatter(j, u0 * trac) + scatter(j + 1, u1 * trac)
             active = mass > (256 * np.finfo(f).eps * m if fold else 0)
             if fold:  # the stray force, to the left neighbour with mass first, else to the right one
                 stray = np.where(active, 0, force)

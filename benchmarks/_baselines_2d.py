@@ -312,7 +312,8 @@ def fold_massless_nd(f: np.ndarray, has_mass: np.ndarray, axes: tuple[int, ...])
 
 
 def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = False):
-    """A Python loop of NumPy steps, ``np.bincount`` scatters of the ``2^dim`` stencil nodes.
+    """A Python loop of NumPy steps, ``np.bincount`` scatters of the ``2^dim`` stencil nodes (which sum
+    in float64: in float32 each nodal sum is rounded to float32, and the step goes on in float32).
 
     With ``fold``, the traction points' force is scattered to their own stencil nodes and then moved
     off nodes without mass as jaxmpm's step does (node masses under ``256 eps m`` count as empty;
@@ -347,6 +348,10 @@ def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = Fals
     tiny = 256 * np.finfo(f).eps * m
     lo, hi = grid_span(L)
     error = None
+
+    def scatter(idx, values):  # bincount sums in float64 whatever the values: the sums in the run's type
+        return np.bincount(idx, values, nodes).astype(f, copy=False)
+
     t0 = time.perf_counter()
     try:
         for k in range(steps):
@@ -357,19 +362,17 @@ def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = Fals
             J = _det(F)
             fi = -(P0 * J**-gamma - p_atm) * V0 * J  # sigma_p V_p, sigma = that times I
             flat, t_flat = idx.ravel(), t_to.ravel()
-            mass = np.bincount(flat, (w * m).ravel(), nodes)
-            mom = np.stack(
-                [np.bincount(flat, (w * (m * v[:, a])[:, None]).ravel(), nodes) for a in range(dim)], 1
-            )
+            mass = scatter(flat, (w * m).ravel())
+            mom = np.stack([scatter(flat, (w * (m * v[:, a])[:, None]).ravel()) for a in range(dim)], 1)
             tr = t_vec * T
             force = np.stack(
                 [
-                    np.bincount(t_flat, (t_w * tr[:, a][:, None]).ravel(), nodes)
-                    - np.bincount(flat, (dw[:, :, a] * fi[:, None]).ravel(), nodes)
+                    scatter(t_flat, (t_w * tr[:, a][:, None]).ravel())
+                    - scatter(flat, (dw[:, :, a] * fi[:, None]).ravel())
                     for a in range(dim)
                 ],
                 1,
-            ).astype(f)
+            )
             active = mass > (tiny if fold else 0)
             if fold:
                 force = fold_massless_nd(force, active, (L["axis_nodes"],) * dim)

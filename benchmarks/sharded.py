@@ -20,6 +20,7 @@ import json
 import math
 import os
 import pathlib
+import shlex
 import subprocess
 import sys
 import time
@@ -104,12 +105,13 @@ def worker(devices: int, repeats: int) -> list[dict]:
     return rows
 
 
-def run(devices: int = 2, repeats: int = 2) -> dict:
+def run(devices: int = 2, repeats: int = 2, out: str | None = None) -> dict:
     """Start the timing process with ``devices`` forced host devices and collect its rows.
 
     Args:
         devices: devices to spread each run over.
         repeats: timed runs per case.
+        out: the folder the result is written to (``--out``), for the command it records.
 
     Returns:
         ``date``, ``machine``, ``command`` and ``rows``.
@@ -130,7 +132,8 @@ def run(devices: int = 2, repeats: int = 2) -> dict:
     return dict(
         date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         machine=machine(),
-        command=f"python -m benchmarks.sharded --devices {devices} --repeats {repeats}",
+        command=f"python -m benchmarks.sharded --devices {devices} --repeats {repeats}"
+        + ("" if out is None else f" --out {shlex.quote(str(out))}"),
         rows=json.loads(proc.stdout.strip().splitlines()[-1]),
     )
 
@@ -193,7 +196,7 @@ def main(argv=None) -> int:
     out = pathlib.Path(args.out) if args.out else None
     if out is not None and out.exists() and not out.is_dir():  # before the runs, not after
         p.error(f"--out {args.out} is a file, not a folder")
-    result = run(args.devices, args.repeats)
+    result = run(args.devices, args.repeats, args.out)
     text = table(result)
     print(text)
     if out is not None:

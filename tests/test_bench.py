@@ -457,3 +457,22 @@ def test_reverse_mode_measurement_small():
     grow_ckpt = rows[1]["reverse_xla_bytes"] / rows[0]["reverse_xla_bytes"]
     grow_plain = rows[1]["plain_reverse_xla_bytes"] / rows[0]["plain_reverse_xla_bytes"]
     assert grow_ckpt < 0.6 * grow_plain
+
+
+def test_the_sharded_benchmark_records_the_command_that_wrote_its_files(monkeypatch, tmp_path):
+    """``python -m benchmarks.sharded --out DIR`` records itself with its ``--out`` (the command that
+    remakes the files), in ``sharded.json`` and above the table in ``sharded.md``."""
+    import subprocess
+
+    from benchmarks import sharded
+
+    def timing_process(cmd, **kwargs):  # the timing process's rows, without running it
+        return subprocess.CompletedProcess(cmd, 0, stdout="[]\n", stderr="")
+
+    monkeypatch.setattr(sharded.subprocess, "run", timing_process)
+    out = tmp_path / "scale"
+    assert sharded.main(["--devices", "2", "--out", str(out)]) == 0
+    command = f"python -m benchmarks.sharded --devices 2 --repeats 2 --out {out}"
+    assert json.loads((out / "sharded.json").read_text())["command"] == command
+    assert f"`{command}`" in (out / "sharded.md").read_text()
+    assert sharded.run(2, 1)["command"] == "python -m benchmarks.sharded --devices 2 --repeats 1"
