@@ -13,8 +13,9 @@ A traction point that has moved off the body's nodes (the box of nodes ``pad .. 
 axis, the nodes with mass) puts its force on the nearest node of that box: its stencil's node indices
 are clamped to the box. That is what jaxmpm's fold of force off nodes without mass
 (``jaxmpm._step.fold_massless``) does while the nodes with mass form that box, as they do here until a
-particle enters a new cell (``PROBLEM_ND``); ``numpy_spq_nd(fold=True)`` runs the fold itself instead,
-the check that both, and ``jaxmpm spq``, compute one method. (The 1D reference codes drop such
+particle enters a new cell (``PROBLEM_ND``); after that the two differ (``bench.method_gap``).
+``numpy_spq_nd(fold=True)`` runs the fold itself instead, the check that ``jaxmpm spq`` computes that
+method. (The 1D reference codes drop such
 force. In 2D that loses part of the traction on every high face from the first step, the faces
 accelerate outward, and the run breaks down: at step 68 of 100 at 102,400 particles.)
 
