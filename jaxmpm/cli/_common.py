@@ -480,3 +480,12 @@ def local_solution(sol: jm.Solution) -> jm.Solution:
     if jax.process_count() == 1:
         return sol
     return jax.tree.map(lambda a: jnp.asarray(host(a)), sol)
+
+
+def measured_where(scene, sol):
+    """Where a run's errors against the exact solution are measured (``run``, ``ensemble``): ``None``
+    (every particle), or for a scene of regions with fronts (the detonation) the particles away from
+    them, which before the front has moved far enough in are none."""
+    if scene.regions is not None and float(sol.state.t) > 0:
+        return jm.metrics.smooth_mask(scene, sol.body, sol.state.t)
+    return None

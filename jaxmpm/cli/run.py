@@ -28,6 +28,7 @@ from ._common import (
     flags,
     floats,
     local_solution,
+    measured_where,
     print_json,
     scalar,
     start_processes,
@@ -362,19 +363,10 @@ def _breakdown_json(args, scene, sol, viscosity, vtk: dict | None = None, device
         report(run, scene, sol, None, None, grad=grad, as_json=True)
 
 
-def _where(scene, sol):
-    """Where a run's errors against the exact solution are measured: ``None`` (every particle), or
-    for a scene of regions with fronts (the detonation) the particles away from them, which before
-    the front has moved far enough in are none."""
-    if scene.regions is not None and float(sol.state.t) > 0:
-        return jm.metrics.smooth_mask(scene, sol.body, sol.state.t)
-    return None
-
-
 def _measured(scene, sol) -> bool:
     """Whether ``F_rms_rel`` is measured at the run's end: the exact solution holds there, and some
     particle is where the errors are measured."""
-    where = _where(scene, sol)
+    where = measured_where(scene, sol)
     return jm.metrics.exact_holds(scene, sol.state.t) and (where is None or bool(np.any(np.asarray(where))))
 
 
@@ -536,7 +528,7 @@ def report(
     """
     st = sol.state
     # A scene of regions with fronts (the detonation) is measured where its solution is smooth.
-    where = _where(scene, sol)
+    where = measured_where(scene, sol)
     # Before the front has moved far enough in, no particle is away from it: nothing to measure yet.
     unmeasured = where is not None and not bool(np.any(np.asarray(where)))
     # After a breakdown this is the last good state's report, and it says so (status, failure).
