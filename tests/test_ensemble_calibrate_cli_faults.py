@@ -494,3 +494,42 @@ def test_ensemble_measures_the_detonation_where_run_does(capsys):
         assert (expected is not None) == measured
         # (the members run vmapped, one compiled program for all: round-off apart from the run)
         assert member["F_max_rel"] == (None if expected is None else pytest.approx(expected, rel=1e-9))
+
+
+def _fit_file(tmp_path, **fixed):
+    """A fit of gamma and P0 of the gas slab as ``jaxmpm calibrate --json`` writes it, with the scene's
+    other parameters as the fit ran them (``fixed``)."""
+    fit = dict(
+        scene="gas-slab",
+        interpolator="cpdi",
+        fitted={"gamma": 1.4, "P0": 3.0e5},
+        offsets={"gamma": 1.0, "P0": fixed["p_atm"]},
+        covariance_theta={"gamma": {"gamma": 1e-4, "P0": 0.0}, "P0": {"gamma": 0.0, "P0": 1e-4}},
+        fixed=fixed,
+    )
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(fit))
+    return str(path)
+
+
+@pytest.mark.slow
+def test_ensemble_from_a_fit_runs_the_scene_the_fit_ran(capsys, tmp_path):
+    """``--from-fit`` runs the members in the fit's scene (its ``fixed``: here ``p_atm = 8e4``,
+    ``rho0 = 1.1`` and 8 cells; they ran at the defaults, 1e5, 1 and 32 cells); the grid's ``pad`` is
+    the ensemble's own, sized for the draws."""
+    fixed = dict(p_atm=8.0e4, h=0.125, rho0=1.1, cells=8, ppc=2, pad=48)
+    fit = _fit_file(tmp_path, **fixed)
+    timing = ["--dt", "2e-5", "--steps", "50"]
+    out = _json_run(capsys, ["ensemble", "gas-slab", "--from-fit", fit, "--members", "2"] + timing)
+    assert out["ok"] == 2
+    for r in out["results"]:
+        scene = jm.GasSlab(**{**fixed, "pad": out["pad"], **r["params"]})
+        sol = jm.simulate(scene, jm.CPDI(), dt=2e-5, steps=50)
+        x = jm.scenes.gas_slab.free_surface(sol.state.x, sol.state.F, sol.state.corners, sol.body)
+        assert r["x_free"] == pytest.approx(float(x), rel=1e-12)
+    # the same values given again are taken; another value is refused, naming both
+    again = ["ensemble", "gas-slab", "p_atm=8e4", "cells=8", "--from-fit", fit, "--members", "2"] + timing
+    assert _json_run(capsys, again)["ok"] == 2
+    other = ["ensemble", "gas-slab", "p_atm=1e5", "--from-fit", fit, "--members", "2"] + timing
+    line = usage(capsys, other, "--from-fit")
+    assert "the fit ran gas-slab with p_atm=80000.0, and the command line gives p_atm=100000.0" in line

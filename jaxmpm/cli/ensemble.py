@@ -83,7 +83,10 @@ def command(args) -> int:
     Raises:
         UsageError: bad input.
     """
-    scene = _assign.scene(args.scene, args.params, options=flags(args))
+    items = list(args.params)
+    if args.from_fit:
+        items += fit_scene(args.from_fit, args.scene, items, _assign.names(args.vary or []))
+    scene = _assign.scene(args.scene, items, options=flags(args))
     varying = list(variable_parameters(scene))
     for k in _assign.names(args.vary or []):
         if k in static_parameters(scene):
@@ -317,6 +320,55 @@ def _size_grid(scene, bounds: dict, timing: dict, fixed) -> "jm.GasSlab":
     if need <= scene.pad or "pad" in fixed:
         return scene
     return type(scene)(**{**scene.parameter_values(), "pad": need})
+
+
+def fit_scene(path: str, name: str, items, varied) -> list[str]:
+    """The scene parameters a fit ran with (its ``fixed``, from ``jaxmpm calibrate --json``) that the
+    command line leaves out, as ``name=value`` items, so that the members run the fit's scene; ``pad``
+    is left to the ensemble, which sizes its grid for the draws. A parameter the command line gives
+    must have the fit's value. A file that cannot be read, or without ``fixed``, gives none
+    (``read_fit`` says what is wrong with it).
+
+    Args:
+        path: the fit's JSON file.
+        name: the ensemble's scene.
+        items: the command line's scene parameters (``name=value``).
+        varied: the names of ``--vary``.
+
+    Returns:
+        The items to add.
+
+    Raises:
+        UsageError: the command line gives a parameter another value than the fit ran with.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            obj = json.load(f)
+    except (OSError, ValueError, UnicodeDecodeError):
+        return []
+    fixed = obj.get("fixed") if isinstance(obj, dict) and obj.get("scene", name) == name else None
+    if not isinstance(fixed, dict):
+        return []
+    given = {}
+    for item in items:
+        try:
+            given.update(_assign.scene_arguments(name, [item]))
+        except UsageError:  # said when the scene is made, with the command's options
+            continue
+    added = []
+    for k, v in fixed.items():
+        if k == "pad" or k in varied or isinstance(v, bool) or not isinstance(v, (int, float, str)):
+            continue
+        if k in given:
+            same = given[k] == v if isinstance(v, str) else float(given[k]) == float(v)
+            if not same:
+                raise UsageError(
+                    f"--from-fit: the fit ran {name} with {k}={v!r}, and the command line gives "
+                    f"{k}={given[k]!r}: leave {k} out to run the fit's scene, or fit again with it"
+                )
+            continue
+        added.append(f"{k}={v!r}" if isinstance(v, float) else f"{k}={v}")
+    return added
 
 
 def read_fit(path: str, scene, allowed) -> dict:
