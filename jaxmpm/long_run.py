@@ -939,7 +939,8 @@ def load(path: str | os.PathLike) -> tuple[Solution, dict]:
     ``saveat.every`` steps of ``dt``, its first frame the initial state of the named scene (its
     velocity, stress, energy, ...). Settings that leave no trace in the saved arrays are not checked:
     the transfer between FLIP and PIC, ``artificial_cells``, ``ordering``, ``cfl_limit``, ``chunk``,
-    ``checkpoint_every``, the interpolator's options, and scene parameters that act only through the
+    ``checkpoint_every``, the interpolator (SPQ, GIMP, CPDI between themselves: their state has the
+    same parts) and its options, the grid's ``pad``, and scene parameters that act only through the
     motion (``rho0`` of a material of ``F`` alone, walls, loads); nor is the stress of a run with an
     artificial ``viscosity`` (it holds the viscous stress of the last step's rate, which is not saved).
 
