@@ -357,17 +357,19 @@ def fit_scene(path: str, name: str, items, varied) -> list[str]:
             continue
     added = []
     for k, v in fixed.items():
-        if k == "pad" or k in varied or isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        if k == "pad" or k in varied or not isinstance(v, (bool, int, float, str)):
             continue
         if k in given:
-            same = given[k] == v if isinstance(v, str) else float(given[k]) == float(v)
+            same = given[k] == v if isinstance(v, (bool, str)) else float(given[k]) == float(v)
             if not same:
                 raise UsageError(
                     f"--from-fit: the fit ran {name} with {k}={v!r}, and the command line gives "
                     f"{k}={given[k]!r}: leave {k} out to run the fit's scene, or fit again with it"
                 )
             continue
-        added.append(f"{k}={v!r}" if isinstance(v, float) else f"{k}={v}")
+        added.append(
+            f"{k}={str(v).lower() if isinstance(v, bool) else repr(v) if isinstance(v, float) else v}"
+        )
     return added
 
 
