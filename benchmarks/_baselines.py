@@ -102,6 +102,12 @@ def boundary_stress(t: float) -> float:
     return -(P["P0"] * (1.0 + P["beta"] * t) ** -P["gamma"] - P["p_atm"])
 
 
+def scatter_sum(idx: np.ndarray, values: np.ndarray, nodes: int, dtype) -> np.ndarray:
+    """``values`` summed per node ``idx`` (``np.bincount``, which sums in float64 whatever the values),
+    rounded to ``dtype``, the run's type."""
+    return np.bincount(idx, values, nodes).astype(dtype, copy=False)
+
+
 def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
     """A Python loop of NumPy steps, ``np.bincount`` scatters (which sum in float64: in float32 each
     nodal sum is rounded to float32, and the step goes on in float32).
@@ -134,8 +140,8 @@ def numpy_spq(n: int, steps: int, dtype: str, fold: bool = False):
     lo, hi = grid_span(L)
     error = None
 
-    def scatter(idx, values):  # bincount sums in float64 whatever the values: the sums in the run's type
-        return np.bincount(idx, values, nodes).astype(f, copy=False)
+    def scatter(idx, values):
+        return scatter_sum(idx, values, nodes, f)
 
     t0 = time.perf_counter()
     try:

@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from ._baselines import PROBLEM, grid_span, health
+from ._baselines import PROBLEM, grid_span, health, scatter_sum
 
 PROBLEM_ND = dict(PROBLEM, beta=5.0)
 """The 2D and 3D problem: the 1D benchmark's gas, with ``beta = 5 /s`` instead of 200.
@@ -350,8 +350,8 @@ def numpy_spq_nd(n: int, steps: int, dtype: str, dim: int = 2, fold: bool = Fals
     lo, hi = grid_span(L)
     error = None
 
-    def scatter(idx, values):  # bincount sums in float64 whatever the values: the sums in the run's type
-        return np.bincount(idx, values, nodes).astype(f, copy=False)
+    def scatter(idx, values):
+        return scatter_sum(idx, values, nodes, f)
 
     t0 = time.perf_counter()
     try:

@@ -711,6 +711,12 @@ runs of this problem part ways at the 1e-3 level whatever the code: their differ
 never judged (``disagreement``)."""
 
 
+def _relative(a: float, b: float) -> float:
+    """``|a - b| / |b|`` (0 where both are 0), ``inf`` where it is not a number."""
+    diff = abs(a - b) / abs(b) if b != 0 else (0.0 if a == b else math.inf)
+    return diff if math.isfinite(diff) else math.inf
+
+
 def _agreement(rows, numpy_with_fold=()) -> tuple[dict, dict]:
     """``(agreement, agreement_notes)``: see ``agreement`` and ``agreement_notes``."""
     out, notes = {}, {}
@@ -752,9 +758,7 @@ def _agreement(rows, numpy_with_fold=()) -> tuple[dict, dict]:
                             + ", ".join(f"{q['code']} broke down (status {q['status']})" for q in broken)
                         )
                         continue
-                    a, b = r["F_mean"], ref["F_mean"]
-                    diff = abs(a - b) / abs(b) if b != 0 else (0.0 if a == b else math.inf)
-                    diffs.append(diff if math.isfinite(diff) else math.inf)  # NaN: a disagreement
+                    diffs.append(_relative(r["F_mean"], ref["F_mean"]))  # NaN: inf, a disagreement
                 if diffs:
                     worst[group] = max(diffs)
                 else:
@@ -849,11 +853,9 @@ def method_gap(rows) -> dict:
         ]
         if not ref:
             continue
-        a, b = r["F_mean"], ref[0]["F_mean"]
-        diff = abs(a - b) / abs(b) if b != 0 else (0.0 if a == b else math.inf)
         groups = out.setdefault(r["dtype"], {})
         key = f"{dim}D"
-        groups[key] = max(groups.get(key, 0.0), diff if math.isfinite(diff) else math.inf)
+        groups[key] = max(groups.get(key, 0.0), _relative(r["F_mean"], ref[0]["F_mean"]))
     return {dtype: dict(sorted(g.items())) for dtype, g in out.items()}
 
 

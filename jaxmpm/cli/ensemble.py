@@ -322,12 +322,29 @@ def _size_grid(scene, bounds: dict, timing: dict, fixed) -> "jm.GasSlab":
     return type(scene)(**{**scene.parameter_values(), "pad": need})
 
 
+def _fit_json(path: str):
+    """The JSON object in ``path``, for ``--from-fit``.
+
+    Raises:
+        UsageError: the file cannot be read, or is not JSON.
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except OSError as e:
+        raise UsageError(f"--from-fit: cannot read {path}: {e.strerror or e}") from None
+    except (ValueError, UnicodeDecodeError):
+        raise UsageError(
+            f"--from-fit: {path} is not JSON (the output of `jaxmpm calibrate --json`)"
+        ) from None
+
+
 def fit_scene(path: str, name: str, items, varied) -> list[str]:
     """The scene parameters a fit ran with (its ``fixed``, from ``jaxmpm calibrate --json``) that the
     command line leaves out, as ``name=value`` items, so that the members run the fit's scene; ``pad``
     is left to the ensemble, which sizes its grid for the draws. A parameter the command line gives
-    must have the fit's value. A file that cannot be read, or without ``fixed``, gives none
-    (``read_fit`` says what is wrong with it).
+    must have the fit's value. A fit without ``fixed`` gives none (``read_fit`` says what else is
+    wrong with it).
 
     Args:
         path: the fit's JSON file.
@@ -339,13 +356,10 @@ def fit_scene(path: str, name: str, items, varied) -> list[str]:
         The items to add.
 
     Raises:
-        UsageError: the command line gives a parameter another value than the fit ran with.
+        UsageError: the file cannot be read or is not JSON, or the command line gives a parameter
+            another value than the fit ran with.
     """
-    try:
-        with open(path, encoding="utf-8") as f:
-            obj = json.load(f)
-    except (OSError, ValueError, UnicodeDecodeError):
-        return []
+    obj = _fit_json(path)
     fixed = obj.get("fixed") if isinstance(obj, dict) and obj.get("scene", name) == name else None
     if not isinstance(fixed, dict):
         return []
@@ -390,15 +404,7 @@ def read_fit(path: str, scene, allowed) -> dict:
             another scene or parameters that cannot vary, or has no finite, positive semi-definite
             covariance.
     """
-    try:
-        with open(path, encoding="utf-8") as f:
-            obj = json.load(f)
-    except OSError as e:
-        raise UsageError(f"--from-fit: cannot read {path}: {e.strerror or e}") from None
-    except (ValueError, UnicodeDecodeError):
-        raise UsageError(
-            f"--from-fit: {path} is not JSON (the output of `jaxmpm calibrate --json`)"
-        ) from None
+    obj = _fit_json(path)
     if isinstance(obj, dict) and obj.get("fitted", "") is None and isinstance(obj.get("error"), str):
         raise UsageError(f"--from-fit: {path} is a fit that has no answer: {obj['error']}")
     keys = ("fitted", "covariance_theta", "offsets")
