@@ -84,8 +84,9 @@ def command(args) -> int:
         UsageError: bad input.
     """
     items = list(args.params)
-    if args.from_fit:
-        items += fit_scene(args.from_fit, args.scene, items, _assign.names(args.vary or []))
+    fit_file = _fit_json(args.from_fit) if args.from_fit else None
+    if fit_file is not None:
+        items += fit_scene(fit_file, args.scene, items, _assign.names(args.vary or []))
     scene = _assign.scene(args.scene, items, options=flags(args))
     varying = list(variable_parameters(scene))
     for k in _assign.names(args.vary or []):
@@ -103,7 +104,7 @@ def command(args) -> int:
                 f"parameters that can vary: {', '.join(varying)}"
             )
     ranges = _assign.ranges(args.vary or [], varying)
-    fit = read_fit(args.from_fit, scene, varying) if args.from_fit else None
+    fit = read_fit(args.from_fit, fit_file, scene, varying) if args.from_fit else None
     if not ranges and fit is None:
         raise UsageError(
             "give the varied parameters: --vary NAME=LOW:HIGH (repeatable), or --from-fit FIT.json"
@@ -339,7 +340,7 @@ def _fit_json(path: str):
         ) from None
 
 
-def fit_scene(path: str, name: str, items, varied) -> list[str]:
+def fit_scene(obj, name: str, items, varied) -> list[str]:
     """The scene parameters a fit ran with (its ``fixed``, from ``jaxmpm calibrate --json``) that the
     command line leaves out, as ``name=value`` items, so that the members run the fit's scene; ``pad``
     is left to the ensemble, which sizes its grid for the draws. A parameter the command line gives
@@ -347,7 +348,7 @@ def fit_scene(path: str, name: str, items, varied) -> list[str]:
     wrong with it).
 
     Args:
-        path: the fit's JSON file.
+        obj: the fit's JSON object (``_fit_json``).
         name: the ensemble's scene.
         items: the command line's scene parameters (``name=value``).
         varied: the names of ``--vary``.
@@ -356,10 +357,8 @@ def fit_scene(path: str, name: str, items, varied) -> list[str]:
         The items to add.
 
     Raises:
-        UsageError: the file cannot be read or is not JSON, or the command line gives a parameter
-            another value than the fit ran with.
+        UsageError: the command line gives a parameter another value than the fit ran with.
     """
-    obj = _fit_json(path)
     fixed = obj.get("fixed") if isinstance(obj, dict) and obj.get("scene", name) == name else None
     if not isinstance(fixed, dict):
         return []
@@ -387,11 +386,12 @@ def fit_scene(path: str, name: str, items, varied) -> list[str]:
     return added
 
 
-def read_fit(path: str, scene, allowed) -> dict:
+def read_fit(path: str, obj, scene, allowed) -> dict:
     """What ``--from-fit`` draws from: the output of ``jaxmpm calibrate --json``.
 
     Args:
-        path: the JSON file.
+        path: the JSON file (for the messages).
+        obj: its JSON object (``_fit_json``).
         scene: the ensemble's scene (the fit's ``scene`` must name it).
         allowed: the parameters that may vary.
 
@@ -400,11 +400,10 @@ def read_fit(path: str, scene, allowed) -> dict:
         to the physical values at 6 standard deviations either side, for the time step and the grid).
 
     Raises:
-        UsageError: the file cannot be read, is not such JSON, is a fit without an answer, names
+        UsageError: the file is not such JSON, is a fit without an answer, names
             another scene or parameters that cannot vary, or has no finite, positive semi-definite
             covariance.
     """
-    obj = _fit_json(path)
     if isinstance(obj, dict) and obj.get("fitted", "") is None and isinstance(obj.get("error"), str):
         raise UsageError(f"--from-fit: {path} is a fit that has no answer: {obj['error']}")
     keys = ("fitted", "covariance_theta", "offsets")
