@@ -598,9 +598,17 @@ def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
         artificial_cells: layers of artificial cells of the run.
 
     Raises:
-        ValueError: a one-region scene with an energy equation, or artificial cells or a traction on
-            a body of regions that does not fill its box.
+        ValueError: a traction on a wall (which holds its nodes at rest, so the load would be lost), a
+            one-region scene with an energy equation, or artificial cells or a traction on a body of
+            regions that does not fill its box.
     """
+    for k, loaded in enumerate(traction_sides(scene)):
+        if loaded and (scene.left, scene.right)[k % 2] == "wall":
+            raise ValueError(
+                f"{type(scene).__name__}.traction loads the {('low', 'high')[k % 2]} face of axis "
+                f"{k // 2}, which is a wall: a wall holds its nodes at rest, so the load would be lost "
+                f"(make that face free or a symmetry plane, or leave its entry None)"
+            )
     lay = scene.layout()
     if lay is not None:
         _check_detonators(scene)

@@ -1,12 +1,14 @@
 """Bodies made of regions: layouts, several materials in one step, history variables, energy, faults."""
 
 import json
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jaxtyping import Array, Float
 
 import jaxmpm as jm
 from jaxmpm.geometry import Ball, Box, Shell
@@ -299,6 +301,63 @@ def test_artificial_cells_and_tractions_need_a_box():
     )
     sol = jm.simulate(box, jm.MPQ(), dt=1e-3, steps=2, artificial_cells=1)  # a box of two regions may
     assert int(sol.status) == 0
+
+
+class LoadedBlock(jm.AbstractScene):
+    """A 2D elastic block at rest with a traction on one face (``face``: 0, 1 the low and high face of
+    axis 0, then 2, 3 of axis 1), its faces ``left`` and ``right`` as given."""
+
+    name: ClassVar[str] = "loaded-block"
+    description: ClassVar[str] = "a 2D block with a traction on one face"
+    dim: ClassVar[int] = 2
+    body_force: ClassVar[None] = None
+    exact: ClassVar[None] = None
+    initial_position: ClassVar[None] = None
+    smooth: ClassVar[None] = None
+    regions: ClassVar[None] = None
+
+    face: int = eqx.field(static=True, default=0)
+    left: str = eqx.field(static=True, default="free")
+    right: str = eqx.field(static=True, default="free")
+    h: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=0.25)
+    rho0: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=1000.0)
+    cells: int = eqx.field(static=True, default=4)
+    ppc: int = eqx.field(static=True, default=2)
+    pad: int = eqx.field(static=True, default=4)
+
+    def material(self):
+        return jm.NeoHookean(lam=1e3, mu=1e3)
+
+    def initial_velocity(self, X):
+        return jnp.zeros_like(X)
+
+    def traction(self, t):
+        faces = [None] * 4
+        faces[self.face] = jnp.asarray([7.0, 3.0], self.h.dtype)
+        return tuple(faces)
+
+
+@pytest.mark.parametrize("face, left, right", [(0, "wall", "free"), (3, "free", "wall"), (1, "symmetry", "wall")])
+def test_a_traction_on_a_wall_is_refused(face, left, right):
+    """A wall holds its nodes at rest: a traction there would be dropped without a trace (the run
+    stayed at rest, status 0). Refused before anything is traced, naming the face."""
+    scene = LoadedBlock(face=face, left=left, right=right)
+    side = ("low", "high")[face % 2]
+    with pytest.raises(
+        ValueError, match=rf"^LoadedBlock.traction loads the {side} face of axis {face // 2}, which is a wall"
+    ) as info:
+        jm.simulate(scene, jm.MPQ(), dt=1e-4, steps=2)
+    assert "\n" not in str(info.value)
+
+
+def test_a_traction_on_a_free_face_gives_the_body_its_force():
+    """The momentum a traction gives a free body is the force on its face: the traction times the
+    face's length (1 m) times the time."""
+    steps, dt = 5, 1e-4
+    scene = LoadedBlock(face=0)
+    sol = jm.simulate(scene, jm.MPQ(), dt=dt, steps=steps)
+    p = np.asarray(jm.diagnostics(scene, sol.state, sol.body)["momentum"])
+    np.testing.assert_allclose(p, np.array([7.0, 3.0]) * steps * dt, rtol=1e-12)
 
 
 @pytest.mark.parametrize(
