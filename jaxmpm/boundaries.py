@@ -22,8 +22,10 @@ precisely:
   velocity ``v_i^n``, so that the boundary node sees a symmetric stencil. They carry no stress and
   exert no force: nodal forces come from the real particles and the tractions, and the nodal
   acceleration is ``a_i = f_i / m_i`` with the real particles' mass ``m_i``. The boundary traction
-  still acts at the real material boundary point. They are never part of the state, results or
-  errors.
+  still acts at the real material boundary point. With FLIP the body's momentum is unchanged by them;
+  PIC and APIC give the particles the nodal velocity, which holds their momentum too, so there the
+  body's momentum changes where the motion is not linear. They are never part of the state, results
+  or errors.
 """
 
 import equinox as eqx
