@@ -337,7 +337,9 @@ class LoadedBlock(jm.AbstractScene):
         return tuple(faces)
 
 
-@pytest.mark.parametrize("face, left, right", [(0, "wall", "free"), (3, "free", "wall"), (1, "symmetry", "wall")])
+@pytest.mark.parametrize(
+    "face, left, right", [(0, "wall", "free"), (3, "free", "wall"), (1, "symmetry", "wall")]
+)
 def test_a_traction_on_a_wall_is_refused(face, left, right):
     """A wall holds its nodes at rest: a traction there would be dropped without a trace (the run
     stayed at rest, status 0). Refused before anything is traced, naming the face."""
