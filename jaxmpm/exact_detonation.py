@@ -688,13 +688,15 @@ def _check_own_rho0(p_s, rho0) -> None:
     to (another ``p_s`` passes, and so do tracers).
 
     Raises:
-        ValueError: both are concrete numbers and differ (relative 1e-12).
+        ValueError: both are concrete numbers and differ (relative 1e-12, or 4 ulps of the type ``own``
+            is stored in where that is more: in float32 1.63 is kept as 1.6299999952).
     """
     if not isinstance(p_s, Isentrope):
         return
     own = p_s.eos.rho0
     if is_concrete(own) and is_concrete(rho0) and np.ndim(rho0) == 0 and np.ndim(own) == 0:
-        if not math.isclose(float(rho0), float(own), rel_tol=1e-12):
+        tol = max(1e-12, 4.0 * float(jnp.finfo(jnp.result_type(own)).eps))
+        if not math.isclose(float(rho0), float(own), rel_tol=tol):
             raise ValueError(
                 f"rho0 must be the isentrope's own rho0 = {float(own)!r} (p_s.eos.rho0), got {float(rho0)!r}"
             )

@@ -34,6 +34,18 @@ def monitored(*events: str):
         jax.monitoring.unregister_event_duration_listener(listen)
 
 
+@contextlib.contextmanager
+def float32():
+    """Run the block with float64 off (JAX's default, what a user who does not switch it on gets), then
+    restore the suite's setting."""
+    x64 = bool(jax.config.jax_enable_x64)
+    jax.config.update("jax_enable_x64", False)
+    try:
+        yield
+    finally:
+        jax.config.update("jax_enable_x64", x64)
+
+
 def usage(capsys, argv, match):
     """Run ``jaxmpm argv``: exit status 2, nothing on stdout, one line on stderr with ``match``."""
     rc = main(argv)

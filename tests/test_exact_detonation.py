@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import float32
 
 from jaxmpm import explosives
 from jaxmpm.exact_detonation import (
@@ -405,6 +406,19 @@ def test_an_isentrope_takes_its_own_rho0(call):
     cj = cj_point(p_s, 1.0)
     assert float(cj["D"]) == pytest.approx(2.0, rel=1e-13) and float(cj["J_CJ"]) == pytest.approx(0.75)
     assert float(isentrope_fan(p_s, 1.0, cj["D"], cj["J_CJ"]).P_CJ) == pytest.approx(1.0, rel=1e-12)
+
+
+def test_an_isentrope_takes_its_own_rho0_in_float32():
+    """In float32 the isentrope keeps rho0 = 1.63 as 1.6299999952: the same density given as 1.63 is its
+    own, not refused (the check's tolerance is the stored type's)."""
+    with float32():
+        p_s = Isentrope(GammaLawIsentrope(rho0=1.63, D=8000.0, gamma=3.0))
+        cj = cj_point(p_s, 1.63)
+        assert float(cj["D"]) == pytest.approx(8000.0, rel=1e-5)
+        fan = isentrope_fan(p_s, 1.63, cj["D"], cj["J_CJ"])
+        assert fan.P_CJ.dtype == jnp.float32 and float(fan.J_CJ) == pytest.approx(0.75, rel=1e-6)
+        with pytest.raises(ValueError, match=r"^rho0 must be the isentrope's own rho0 = 1\.62999"):
+            cj_point(p_s, 1.6301)
 
 
 _FAN = None
