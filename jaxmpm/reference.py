@@ -165,8 +165,8 @@ def gas_slab(
     scene,
     ts,
     cells: int = 400,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
+    rtol: float | None = None,
+    atol: float | None = None,
     max_steps: int = 200_000,
 ) -> SlabSolution:
     """Solve the gas slab of ``scene`` (a ``GasSlab``; its ``P0, gamma, p_atm, rho0`` and length).
@@ -175,8 +175,9 @@ def gas_slab(
         scene: the ``GasSlab`` whose parameters to use (its ``cells`` and ``h`` give only ``L``).
         ts: non-decreasing times to report at, a non-empty 1-d sequence from ``ts[0] >= 0``.
         cells: Lagrangian cells of the reference (independent of the MPM resolution).
-        rtol: diffrax's relative tolerance.
-        atol: diffrax's absolute tolerance, relative to the scales of F, v and x.
+        rtol: diffrax's relative tolerance (``None``: 1e-8 in float64, 1e-6 in float32).
+        atol: diffrax's absolute tolerance, relative to the scales of F, v and x (``None``: 1e-10 in
+            float64, 1e-8 in float32).
         max_steps: diffrax's step bound (an integer >= 1).
 
     Returns:
@@ -184,7 +185,9 @@ def gas_slab(
 
     Raises:
         ValueError: ``scene`` is not a ``GasSlab``; ``ts`` is not a non-empty 1-d sequence of finite,
-            non-decreasing times from ``>= 0``; bad ``cells``, ``rtol``, ``atol`` or ``max_steps``;
+            non-decreasing times from ``>= 0``; bad ``cells``, ``rtol``, ``atol`` or ``max_steps``
+            (``rtol`` below 8 ulps or ``atol`` below 1/16 ulp of the scene's float type among them:
+            the solver cannot meet them and shrinks its steps);
             or the solve to ``ts[-1]`` needs more than ``max_steps`` steps (under ``jax.jit``,
             ``jax.grad`` or ``jax.vmap`` that, and any other failure of the solver, is diffrax's
             runtime error).
@@ -193,8 +196,7 @@ def gas_slab(
         raise ValueError(f"scene must be a GasSlab (jm.GasSlab(...)), got {type(scene).__name__}")
     _check_times(ts, strictly=False)
     check_int("cells", cells, 2)
-    check_positive("rtol", rtol)
-    check_positive("atol", atol)
+    rtol, atol = _tolerances(scene.h.dtype, rtol, atol)
     check_int("max_steps", max_steps, 1)
     ts = jnp.asarray(ts, dtype=scene.h.dtype)
     L = scene.length
@@ -221,6 +223,34 @@ def gas_slab(
     F, _, xr = sol.ys
     X = (jnp.arange(cells, dtype=ts.dtype) + 0.5) * dX
     return SlabSolution(ts=ts, x_free=L + L * xr, F=F, X=X, stats=dict(sol.stats))
+
+
+def _tolerances(dtype, rtol, atol) -> tuple[float, float]:
+    """``gas_slab``'s tolerances: the float type's defaults for ``None``, else the values given, once
+    they are within what the type resolves.
+
+    Raises:
+        ValueError: a tolerance is not a positive finite number, or lies below what ``dtype`` resolves
+            (``rtol`` under 8 ulps, ``atol`` under 1/16 ulp).
+    """
+    eps = float(jnp.finfo(dtype).eps)
+    wide = jnp.dtype(dtype) == jnp.float64
+    given = {"rtol": rtol, "atol": atol}
+    out = {"rtol": 1e-8 if wide else 1e-6, "atol": 1e-10 if wide else 1e-8}
+    least = {"rtol": 8.0 * eps, "atol": eps / 16.0}
+    for name, value in given.items():
+        if value is None:
+            continue
+        check_positive(name, value)
+        if is_concrete(value) and float(value) < least[name]:
+            raise ValueError(
+                f"{name}={float(value)!r} is below what {jnp.dtype(dtype).name} resolves (at least "
+                f"{least[name]:.3g}; the solver would shrink its steps to nothing): give {name} >= "
+                f"{least[name]:.3g}"
+                + ("" if wide else ', or switch float64 on (jax.config.update("jax_enable_x64", True))')
+            )
+        out[name] = value
+    return out["rtol"], out["atol"]
 
 
 def _succeeded(sol: diffrax.Solution, max_steps: int, ts: Array) -> diffrax.Solution:

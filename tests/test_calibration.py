@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import BACKEND_COMPILE, TRACE, monitored
+from helpers import BACKEND_COMPILE, TRACE, float32, monitored
 
 import jaxmpm as jm
 from jaxmpm import calibrate as cal
@@ -35,6 +35,26 @@ def synthetic():
     dt = _dt(sc)
     x = np.asarray(cal.trajectory(sc, jm.CPDI(), TS, dt=dt))
     return sc, dt, x
+
+
+def test_gas_slab_reference_tolerances_follow_the_float_type():
+    """In float32 the reference's float64 tolerances (rtol 1e-8, atol 1e-10) lie below what the type
+    resolves: the solver shrank its steps (68,791 at 400 cells for 8,210 in float64) and at 1,600 cells
+    ran out of ``max_steps``, a message that blamed ``max_steps``. Its defaults are now the type's
+    (1e-6 and 1e-8 in float32: 3,360 steps at 400 cells, the end's x_free within 3e-6 of float64's),
+    and tolerances below what it resolves are refused, naming float64."""
+    ts = np.linspace(0.0, 12e-3, 7)
+    with float32():
+        ref = reference.gas_slab(jm.GasSlab(), ts, cells=400)
+        assert ref.x_free.dtype == jnp.float32 and int(ref.stats["num_steps"]) < 10_000
+        for kw, name in ((dict(rtol=1e-8), "rtol"), (dict(atol=1e-10), "atol")):
+            with pytest.raises(
+                ValueError, match=rf"^{name}=1e-(08|10) is below what float32 resolves .*float64"
+            ):
+                reference.gas_slab(jm.GasSlab(), ts, cells=400, **kw)
+    ref64 = reference.gas_slab(jm.GasSlab(), ts, cells=400)
+    assert float(ref.x_free[-1]) == pytest.approx(float(ref64.x_free[-1]), rel=3e-6)
+    assert int(ref64.stats["num_steps"]) > 5_000  # float64's own tolerances, 1e-8 and 1e-10
 
 
 def test_gas_slab_reference_compiles_once_for_new_parameter_values():
