@@ -1179,6 +1179,11 @@ def _check_array(path: pathlib.Path, key: str, arrays: dict, shape: tuple, dtype
         hint = ""
         if a.dtype == np.float64 and np.dtype(dtype) == np.float32:
             hint = " (the run was saved in float64: call jax.config.update('jax_enable_x64', True) first)"
+        elif key == "body.X" and a.dtype == np.float32 and np.dtype(dtype) == np.float64:
+            hint = (
+                " (the run was saved in float32: load or resume it in Python with float64 off; "
+                "jaxmpm resume runs in float64)"
+            )
         raise ValueError(f"{path}: {key} has dtype {a.dtype}, expected {np.dtype(dtype)}{hint}")
     return a
 

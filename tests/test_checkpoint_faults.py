@@ -15,6 +15,7 @@ import re
 import jax
 import numpy as np
 import pytest
+from helpers import float32
 
 import jaxmpm as jm
 from jaxmpm import long_run
@@ -328,6 +329,21 @@ def test_state_array_of_the_wrong_dtype(good, tmp_path, capsys):
     v = arrays_of(good)["state.v"].astype(np.float32)
     path = variant(good, tmp_path, state__v=v)
     assert_refused(path, capsys, "state.v has dtype float32, expected float64")
+
+
+def test_a_run_saved_in_float32_is_refused_in_float64_saying_so(tmp_path, capsys):
+    """A run saved from Python with float64 off cannot go on in float64 (``jaxmpm resume`` always runs
+    in it): the refusal says the run was saved in float32 and how to go on with it."""
+    path = tmp_path / "f32.npz"
+    with float32():
+        long_run.run(jm.GasExpansion(cells=4), jm.MPQ(), dt=1e-5, steps=4, chunk=2, out=path)
+        assert long_run.load(path)[0].state.x.dtype == np.float32  # it loads in float32
+    assert_refused(
+        path,
+        capsys,
+        "body.X has dtype float32, expected float64",
+        "the run was saved in float32: load or resume it in Python with float64 off",
+    )
 
 
 def test_meta_names_another_transfer_than_the_arrays_hold(good, tmp_path, capsys):
