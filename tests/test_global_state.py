@@ -47,3 +47,37 @@ def test_lazy_submodules_are_attributes_of_the_package():
         assert getattr(jm, name).__name__ == f"jaxmpm.{name}"
         assert dir(jm).count(name) == 1
     assert "version" not in dir(jm) and "PackageNotFoundError" not in dir(jm)
+
+
+def test_the_command_line_called_in_process_gives_back_the_callers_float_type(capsys):
+    """``main`` switches float64 on for its command and back off on return: a notebook that calls it
+    with float64 off keeps float32 (a scene it made before still runs)."""
+    import jax
+
+    import jaxmpm as jm
+    from jaxmpm.cli import main
+
+    x64 = bool(jax.config.jax_enable_x64)
+    jax.config.update("jax_enable_x64", False)
+    try:
+        scene = jm.GasExpansion(cells=4)
+        argv = [
+            "run",
+            "gas-expansion",
+            "cells=4",
+            "--interpolator",
+            "mpq",
+            "--dt",
+            "1e-5",
+            "--steps",
+            "2",
+            "--json",
+        ]
+        assert main(argv) == 0
+        assert '"steps": 2' in capsys.readouterr().out
+        assert jax.config.jax_enable_x64 is False
+        assert jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=2).state.x.dtype.name == "float32"
+        assert main(["run", "no-such-scene"]) == 2  # and on a refusal
+        assert jax.config.jax_enable_x64 is False
+    finally:
+        jax.config.update("jax_enable_x64", x64)

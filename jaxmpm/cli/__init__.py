@@ -48,8 +48,9 @@ def parser() -> Parser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``jaxmpm`` console script.
 
-    Switches on float64 before anything is built. Figures are drawn on ``matplotlib.figure.Figure``
-    objects, which need no display backend.
+    Switches on float64 before anything is built, and gives the caller's setting back on return (a
+    notebook that calls it keeps its own). Figures are drawn on ``matplotlib.figure.Figure`` objects,
+    which need no display backend.
 
     Args:
         argv: the arguments after ``jaxmpm`` (default: ``sys.argv[1:]``).
@@ -63,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         finished chunk saved, one line); 141 when stdout is closed by its reader
         (``jaxmpm ... | head``), silently; 1 for ``bench`` when one of its benchmark processes fails.
     """
+    x64 = bool(jax.config.jax_enable_x64)
     jax.config.update("jax_enable_x64", True)
     main_thread = threading.current_thread() is threading.main_thread()
     previous = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) if main_thread else None
@@ -79,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         if main_thread:  # a caller in this process (a test, a notebook) keeps its own handlers
             signal.signal(signal.SIGINT, previous[0])
             signal.signal(signal.SIGTERM, previous[1])
+        jax.config.update("jax_enable_x64", x64)  # and its own float type
 
 
 class _Terminate(InterruptLatch):
