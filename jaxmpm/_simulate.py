@@ -205,6 +205,26 @@ def _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_li
     check_cfl_limit(cfl_limit)
 
 
+def _check_resolved(name: str, value, dtype) -> None:
+    """Refuse a concrete positive time (or Courant number) that the run's float type rounds to 0.
+
+    Raises:
+        ValueError: ``value`` is a number > 0 that becomes 0 in ``dtype`` (``dt = 1e-50`` in float32).
+    """
+    if isinstance(value, bool | np.bool_) or not is_concrete(value) or np.ndim(value) != 0:
+        return
+    try:
+        given = float(value)
+    except (TypeError, ValueError):
+        return  # not a number: the checks that follow name it
+    if given > 0.0 and float(np.asarray(given, dtype=dtype)) == 0.0:
+        raise ValueError(
+            f"{name}={given!r} rounds to 0 in {np.dtype(dtype).name}, the run's float type (its smallest "
+            f"number > 0 is {float(np.finfo(dtype).smallest_subnormal):.3g}); give a larger {name}, or "
+            "switch float64 on"
+        )
+
+
 def _refuse_to_end_options(cfl, max_steps) -> None:
     """Refuse ``cfl`` and ``max_steps`` given to a run of fixed steps, which they do not apply to."""
     if max_steps is not None:
@@ -636,6 +656,9 @@ def prepare(
         raise ValueError("give dt and steps (fixed steps), or t_end, cfl and max_steps (to an end time)")
     else:
         _refuse_to_end_options(cfl=cfl, max_steps=max_steps)
+    if isinstance(scene, AbstractScene):
+        for name, value in (("t_end", t_end), ("cfl", cfl)) if t_end is not None else (("dt", dt),):
+            _check_resolved(name, value, scene.h.dtype)
     _validate(scene, interpolator, transfer, dt, steps, artificial_cells, cfl_limit, checkpoint, viscosity)
     if isinstance(dt, ToEnd) and cfl_limit is not None and is_concrete(cfl) and float(cfl) > cfl_limit:
         raise ValueError(

@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import float32
 
 import jaxmpm as jm
 from jaxmpm import status as st_bits
@@ -435,3 +436,18 @@ def test_write_series_checks_the_model_and_the_solution_before_writing(tmp_path)
     assert a_file.read_text() == "MINE" and not (tmp_path / "nowhere").exists()
     paths = jm.vtk.write_series(tmp_path / "frames", jm.Model(scene, jm.SPQ(), jm.FLIP()), sol)
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == sorted(p.name for p in paths)
+
+
+@pytest.mark.parametrize(
+    "kw, name",
+    [(dict(dt=1e-50, steps=3), "dt"), (dict(t_end=1e-50, max_steps=3), "t_end")],
+)
+def test_a_time_that_rounds_to_zero_in_the_runs_float_type_is_refused(kw, name):
+    """In float32 dt = 1e-50 became 0: the run took 3 steps of nothing (t = 0, status 0). Refused
+    before anything is traced, naming the value given and the float type."""
+    with float32():
+        scene = jm.GasExpansion(cells=4)
+        with pytest.raises(ValueError, match=rf"^{name}=1e-50 rounds to 0 in float32, the run's float type"):
+            jm.simulate(scene, jm.MPQ(), **kw)
+    sol = jm.simulate(jm.GasExpansion(cells=4), jm.MPQ(), **kw)  # float64 holds it
+    assert sol.failure() is None and float(sol.state.t) > 0.0
