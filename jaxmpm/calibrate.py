@@ -1585,11 +1585,12 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
     J_rel = Jt * (value / D)  # d r / d ln p
     w, V = np.linalg.eigh(J_rel.T @ J_rel)
     condition = float(w[-1] / w[0]) if w[0] > 0 else float("inf")
-    regular = w[0] > 1e-14 * max(w[-1], 1e-300)
+    precision = float(jnp.finfo(scene.h.dtype).eps)
+    regular = w[0] > _cuts(precision)[0] * max(w[-1], 1e-300)
     if regular:
         A_inv, rank = np.linalg.inv(A), p
     else:
-        A_inv, rank = _inverse_where_determined(Jt)
+        A_inv, rank = _inverse_where_determined(Jt, precision)
     if noise is not None:
         sigma = float(noise)
     elif n > rank:
@@ -1627,17 +1628,29 @@ def uncertainty(scene, names, fitted, r, *, J_theta, noise=None, offs=None) -> d
     )
 
 
-def _inverse_where_determined(J) -> tuple[np.ndarray, int]:
+def _cuts(precision: float) -> tuple[float, float]:
+    """How small a squared singular value of ``J`` (relative to the largest) counts as zero, and how
+    large a component along the null space still counts as orthogonal: ``1e-14`` and ``1e-6`` for a
+    Jacobian of float64 runs, scaled with ``precision`` (the machine epsilon of the runs' float type)
+    and its square root: ``5.4e-6`` and ``0.023`` for float32, whose round-off leaves proportional
+    columns 1e-7 to 1e-6 apart."""
+    ratio = precision / float(np.finfo(np.float64).eps)
+    return 1e-14 * ratio, 1e-6 * float(np.sqrt(ratio))
+
+
+def _inverse_where_determined(J, precision: float) -> tuple[np.ndarray, int]:
     """``(J^T J)^-1`` where the data determine it, for a singular ``J^T J``.
 
     From the singular value decomposition of ``J`` with its columns scaled to unit length. A
     constant is determined when its unit vector is orthogonal to the null space (the right singular
-    vectors whose squared singular values are at most ``1e-14`` of the largest): its component along
-    them is at most ``1e-6``. Its variance, and the covariance of two determined constants, are then
-    those of any generalised inverse; this is the pseudo-inverse's.
+    vectors whose squared singular values are at most ``1e-14`` of the largest in float64): its
+    component along them is at most ``1e-6`` (both cuts scaled to the runs' precision: ``_cuts``).
+    Its variance, and the covariance of two determined constants, are then those of any generalised
+    inverse; this is the pseudo-inverse's.
 
     Args:
         J: ``(n, p)``.
+        precision: the machine epsilon of the float type of the runs that gave ``J``.
 
     Returns:
         ``(P, rank)``: the pseudo-inverse of ``J^T J`` with ``inf`` on the diagonal and NaN off it for
@@ -1648,8 +1661,9 @@ def _inverse_where_determined(J) -> tuple[np.ndarray, int]:
     s = np.where(seen, s, 1.0)
     _, S, Vt = np.linalg.svd(J / s, full_matrices=False)
     S = np.concatenate([S, np.zeros(Vt.shape[0] - S.size)])
-    keep = S**2 > 1e-14 * max(S[0] ** 2, 1e-300)
-    determined = seen & (np.linalg.norm(Vt[~keep], axis=0) <= 1e-6)
+    singular, null = _cuts(precision)
+    keep = S**2 > singular * max(S[0] ** 2, 1e-300)
+    determined = seen & (np.linalg.norm(Vt[~keep], axis=0) <= null)
     P = (Vt[keep].T / S[keep] ** 2) @ Vt[keep] / np.outer(s, s)
     P = np.where(np.outer(determined, determined), P, np.nan)
     P[np.diag_indices_from(P)] = np.where(determined, np.diag(P), np.inf)
@@ -1756,6 +1770,9 @@ class Information:
         ts: the plan's times.
         jacobian: ``d x_R(t_i) / d p_j``, ``(len(ts), p)``, physical units.
         noise: the plan's noise level.
+        precision: the machine epsilon of the float type of the runs that gave ``jacobian`` (float64's
+            by default): how far apart its round-off leaves columns that are really proportional,
+            for the decision of what the plan determines.
     """
 
     names: tuple
@@ -1763,6 +1780,7 @@ class Information:
     ts: np.ndarray
     jacobian: np.ndarray
     noise: float
+    precision: float = float(np.finfo(np.float64).eps)
 
     def _rows(self, t_end, samples):
         if t_end is not None:
@@ -1814,7 +1832,7 @@ class Information:
         """
         self.fisher(t_end, samples, noise)  # checks the window and the noise
         s = self.noise if noise is None else float(noise)
-        P, _ = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)] / s)
+        P, _ = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)] / s, self.precision)
         return {k: float(v) for k, v in zip(self.names, np.sqrt(np.diag(P)))}
 
     def correlation(self, t_end: float | None = None, samples: int | None = None) -> np.ndarray:
@@ -1832,7 +1850,7 @@ class Information:
                 errors are infinite (``std``), so their correlations are undefined.
         """
         self.fisher(t_end, samples, 1.0)  # checks the window
-        C, rank = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)])
+        C, rank = _inverse_where_determined(self.jacobian[self._rows(t_end, samples)], self.precision)
         if rank < len(self.names):
             raise ValueError(
                 f"this plan does not determine {_and(self.names)}: the Fisher information is singular, "
@@ -1896,7 +1914,12 @@ def information(
         raise CalibrationError(f"information: {model.why(value)[0]}")
     J_phys = J[0] / (value - model.off)
     return Information(
-        names=names, values=dict(zip(names, value.tolist())), ts=ts, jacobian=J_phys, noise=float(noise)
+        names=names,
+        values=dict(zip(names, value.tolist())),
+        ts=ts,
+        jacobian=J_phys,
+        noise=float(noise),
+        precision=float(jnp.finfo(scene.h.dtype).eps),
     )
 
 

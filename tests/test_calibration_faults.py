@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from helpers import raw
+from helpers import float32, raw
 
 import jaxmpm as jm
 from jaxmpm import calibrate as cal
@@ -470,6 +470,49 @@ def test_a_singular_plan_gives_the_determined_constant_its_standard_error():
     Jr = np.stack([a, b], axis=1)
     assert std["gamma"] == pytest.approx(0.01 * np.sqrt(np.linalg.inv(Jr.T @ Jr)[0, 0]), rel=1e-9)
     assert np.isinf(std["P0"]) and np.isinf(std["p_atm"])
+
+
+def test_a_singular_fit_in_float32_is_singular_to_float32s_precision():
+    """The Jacobian of a float32 run carries its round-off (1e-7 relative a step, more over a run):
+    proportional columns are then 1e-6 apart, not exactly equal, and the float64 cut (squared
+    singular values 1e-14 of the largest) called them independent, P0 and p_atm determined to +-1e8.
+    The cut follows the precision of the scene's float type."""
+    rng = np.random.default_rng(6)
+    a, b = rng.standard_normal(12), rng.standard_normal(12)
+    J = np.stack([a, b, 3.0 * b * (1.0 + 1e-6 * rng.standard_normal(12))], axis=1)
+    r = 0.1 * rng.standard_normal(12)
+    names, fitted = ("gamma", "P0", "p_atm"), {"gamma": 1.4, "P0": 3e5, "p_atm": 1e5}
+    with float32():
+        sc = jm.GasSlab(**SLAB)
+        u = cal.uncertainty(sc, names, fitted, r, J_theta=J.astype(np.float32))
+    assert np.isfinite(u["std"]["gamma"]) and np.isinf(u["std"]["P0"]) and np.isinf(u["std"]["p_atm"])
+    u64 = cal.uncertainty(jm.GasSlab(**SLAB), names, fitted, r, J_theta=J)  # float64 resolves 1e-6
+    assert all(np.isfinite(v) for v in u64["std"].values())
+    info = cal.Information(
+        names=names,
+        values=fitted,
+        ts=TS[:12],
+        jacobian=J,
+        noise=0.01,
+        precision=float(np.finfo(np.float32).eps),
+    )
+    std = info.std()
+    assert np.isfinite(std["gamma"]) and np.isinf(std["P0"]) and np.isinf(std["p_atm"])
+
+
+@pytest.mark.slow
+def test_a_plan_computed_in_float32_says_what_it_cannot_determine():
+    """The gas slab's P0, p_atm and rho0 enter only through two combinations: in float64 a plan of the
+    four constants determines gamma alone (the others' standard errors infinite); in float32 it called
+    all four undetermined (gamma's component along the null space 6.7e-6, over the float64 cut 1e-6)."""
+    ts = np.linspace(0.0, 12e-3, 61)
+    dt = 0.2 * (1 / 16) / np.sqrt(1.4 * 3e5)
+    with float32():
+        sc = jm.GasSlab(cells=16, h=1 / 16, pad=96)
+        info = cal.information(sc, jm.CPDI(), ts, fit=("gamma", "P0", "p_atm", "rho0"), dt=dt, noise=0.01)
+    std = info.std()
+    assert std["gamma"] == pytest.approx(0.0159, rel=0.5)  # 0.0159 in float64
+    assert all(np.isinf(std[k]) for k in ("P0", "p_atm", "rho0"))
 
 
 def test_a_plan_in_any_units_has_the_same_correlation():
