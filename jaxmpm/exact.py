@@ -116,9 +116,15 @@ def _branches(F, F0, v0, P0, gamma, rho0, sign):
     g = 2.0 / (gamma - 1.0)
     rare = v0 - sign * g * (_sound_speed(F0, P0, gamma, rho0) - _sound_speed(F, P0, gamma, rho0))
     dP = P0 * (F ** (-gamma) - F0 ** (-gamma))  # >= 0 in compression
-    jump = jnp.sqrt(jnp.maximum(dP * (F0 - F), 0.0) / rho0)
-    shock = v0 + sign * jump
-    return jnp.where(F >= F0, rare, shock)
+    arg = dP * (F0 - F)
+    # The shock where it compresses by more than sqrt(eps) of F0; nearer, the rarefaction, which meets
+    # it at F0 with the same slope and curvature (the two differ by O((F0 - F)^3), below round-off
+    # there). The shock's sqrt(arg) has no usable derivative near arg = 0: infinite at F = F0, which
+    # gave the star state's Newton step 0/0 (NaN), and round-off over round-off an ulp below it.
+    near = F0 - F <= jnp.sqrt(jnp.finfo(jnp.result_type(F)).eps) * F0
+    compressed = ~near & (arg > 0.0)
+    shock = v0 + sign * jnp.sqrt(jnp.where(compressed, arg, 1.0) / rho0)
+    return jnp.where(compressed, shock, rare)
 
 
 def riemann_star(F_L, v_L, F_R, v_R, P0, gamma, rho0, iterations: int = 200):

@@ -101,6 +101,50 @@ def test_riemann_symmetric_rarefactions_have_the_closed_form_star_state():
     assert float(d) == pytest.approx(float(fd), rel=1e-7)
 
 
+def test_riemann_star_of_equal_states_is_that_state():
+    """Equal left and right states have no waves: the star state is that state. Where the bisection
+    landed on it exactly (F = 2 with P0 = 1, gamma = 1.4, rho0 = 1) the Newton step took the derivative
+    of the unselected shock branch, sqrt(0), and gave NaN; jm.Riemann refused the uniform state."""
+    for F, v, P0, gamma, rho0 in (
+        (2.0, 0.0, 1.0, 1.4, 1.0),
+        (1.3, 0.2, 2.0, 1.6, 0.7),
+        (1.0, 0.0, 1.0, 1.4, 1.0),
+    ):
+        F_s, v_s = exact.riemann_star(F, v, F, v, P0, gamma, rho0)
+        assert float(F_s) == pytest.approx(F, rel=1e-14) and float(v_s) == pytest.approx(v, abs=1e-14)
+    F_s, _ = jax.vmap(lambda F: exact.riemann_star(F, 0.0, 2.0, 0.0, 1.0, 1.4, 1.0))(
+        jnp.array([1.9, 2.0, 2.1])
+    )
+    assert np.all(np.isfinite(np.asarray(F_s)))
+    d = jax.grad(lambda F: exact.riemann_star(F, 0.0, 2.0, 0.0, 1.0, 1.4, 1.0)[0])(2.0)
+    assert float(d) == pytest.approx(0.5, rel=1e-12)  # symmetric waves: F* moves by half of F_L
+    sc = jm.Riemann(F_left=2.0, F_right=2.0)  # was refused: "give no finite star state"
+    assert float(exact.riemann_waves(*sc._args())["F_star"]) == pytest.approx(2.0, rel=1e-14)
+
+
+def test_riemann_star_derivative_where_one_wave_is_absent():
+    """A right state on the left state's rarefaction curve: no left wave, F* = F_L to round-off (an
+    ulp below it here). The star state is smooth there (the shock and rarefaction curves meet with
+    the same slope and curvature), but the shock's sqrt took its derivative at round-off over
+    round-off: dv*/dF_L -0.6010 for -0.5916 by central differences. Now to 1e-8."""
+    P0, gamma, rho0, F_L, F_R = 1.0, 1.4, 1.0, 1.0, 0.8
+
+    def c(F):
+        return math.sqrt(gamma * P0 * F ** (1 - gamma) / rho0)
+
+    p = jnp.array([F_L, 0.0, F_R, 2 / (gamma - 1) * (c(F_R) - c(F_L)), P0, gamma, rho0])
+
+    def star(p):
+        return jnp.stack(exact.riemann_star(*p))
+
+    assert abs(float(star(p)[0]) - F_L) < 1e-15
+    J = np.asarray(jax.jacrev(star)(p))
+    for i in range(7):
+        e = jnp.zeros(7).at[i].set(max(abs(float(p[i])), 1.0) * 1e-5)
+        fd = (np.asarray(star(p + e)) - np.asarray(star(p - e))) / (2 * float(e[i]))
+        np.testing.assert_allclose(J[:, i], fd, rtol=1e-8, atol=1e-12)
+
+
 def test_riemann_refuses_data_that_open_a_vacuum():
     with pytest.raises(ValueError, match="vacuum forms"):
         jm.Riemann(v_left=-10.0, v_right=10.0)
