@@ -598,10 +598,12 @@ def check_structure(scene: AbstractScene, artificial_cells: int) -> None:
         artificial_cells: layers of artificial cells of the run.
 
     Raises:
-        ValueError: a traction on a wall (which holds its nodes at rest, so the load would be lost), a
+        ValueError: a parameter of another float type than the run's (``check_float_type``), a
+            traction on a wall (which holds its nodes at rest, so the load would be lost), a
             one-region scene with an energy equation, or artificial cells or a traction on a body of
             regions that does not fill its box.
     """
+    check_float_type(scene)  # before the traction is traced: a float32 field would fail in it
     for k, loaded in enumerate(traction_sides(scene)):
         if loaded and (scene.left, scene.right)[k % 2] == "wall":
             raise ValueError(
