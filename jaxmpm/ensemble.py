@@ -296,7 +296,7 @@ def ensemble(
     """
     check_keywords("ensemble", simulate_kwargs, simulate)
     devices = list(jax.local_devices() if devices is None else as_devices(devices))
-    if any_traced(scene):
+    if any_traced((scene, dict(vary) if isinstance(vary, Mapping) else None, simulate_kwargs)):
         raise ValueError(
             "jm.ensemble batches its members itself, in one compiled call: call it outside jax.vmap, "
             "jax.jit and jax.grad, with the values to run in vary= (or jax.vmap over jm.simulate)"

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from ._checks import brief, check_bool, check_positive, check_real, is_concrete
+from ._checks import any_traced, brief, check_bool, check_positive, check_real, is_concrete
 from ._simulate import Solution, simulate
 from ._step import check_scene
 from ._util import as_float
@@ -319,13 +319,19 @@ def gradient(
         ``{name: d(error)/d(name)}``.
 
     Raises:
-        ValueError: an unknown mode, or what ``objective`` refuses (a scene that is not a jaxmpm
-            scene object, bad ``names``, a name given twice, an unknown ``error``), before anything is
-            traced; after the run, a run that broke down (``throw=False``) or an error that is not
-            finite.
+        ValueError: an unknown mode, a call inside ``jax.jit``, ``jax.vmap`` or ``jax.grad`` (a traced
+            scene, ``dt`` or run argument), or what ``objective`` refuses (a scene that is not a
+            jaxmpm scene object, bad ``names``, a name given twice, an unknown ``error``), before
+            anything is traced; after the run, a run that broke down (``throw=False``) or an error
+            that is not finite.
     """
     if mode not in ("reverse", "forward"):
         raise ValueError(f"mode must be 'reverse' or 'forward', got {mode!r}")
+    if any_traced((scene, dt, simulate_kwargs)):
+        raise ValueError(
+            "jm.gradient returns concrete numbers: call it outside jax.jit, jax.vmap and jax.grad (inside "
+            "them, differentiate jm.sensitivity.objective with jax.grad or jax.jacfwd)"
+        )
     measured = _measured(scene, interpolator, names, dt=dt, steps=steps, error=error, **simulate_kwargs)
     values = {n: as_float(dt if n == "dt" else getattr(scene, n)) for n in names}
 

@@ -297,6 +297,27 @@ def test_a_fit_and_an_ensemble_under_a_transformation_say_what_to_use():
     with pytest.raises(ValueError, match=r"^jm.ensemble batches its members itself, in one compiled call"):
         jax.vmap(status)(jnp.array([100.0, 200.0]))
 
+    # the values of vary= or dt traced (the scene made outside) gave JAX's TracerArrayConversionError
+    scene = jm.GasExpansion(cells=4)
+
+    def member_values(p0):
+        return jm.ensemble(scene, jm.MPQ(), {"P0": p0}, dt=DT, steps=1).status
+
+    def member_dt(dt):
+        return jm.ensemble(scene, jm.MPQ(), {"P0": [3e5, 4e5]}, dt=dt, steps=1).status
+
+    for call in (lambda: jax.jit(member_values)(jnp.array([3e5, 4e5])), lambda: jax.jit(member_dt)(DT)):
+        with pytest.raises(
+            ValueError, match=r"^jm.ensemble batches its members itself, in one compiled call"
+        ):
+            call()
+
+    def derivative(dt):  # gave a ConcretizationTypeError after compiling the run
+        return jm.gradient(scene, jm.MPQ(), ["P0"], dt=dt, steps=2)["P0"]
+
+    with pytest.raises(ValueError, match=r"^jm.gradient returns concrete numbers: call it outside jax.jit"):
+        jax.jit(derivative)(DT)
+
 
 def test_describe_reads_one_status_and_refuses_what_is_none():
     assert jm.status.describe(0) == []
