@@ -273,7 +273,8 @@ class Model(eqx.Module):
 
     Raises:
         ValueError: an argument ``simulate`` would refuse, with its message (``check_parts``,
-            ``artificial_cells`` an integer >= 0, ``cfl_limit`` None or one number > 0), an unknown
+            ``artificial_cells`` an integer >= 0, below ``scene.pad``, ``cfl_limit`` None or one
+            number > 0), an unknown
             ``ordering`` or ``volume_average``, or ``devices`` that are not distinct devices.
     """
 
@@ -295,6 +296,11 @@ class Model(eqx.Module):
             raise ValueError(
                 f"artificial_cells adds cells outside the body's free faces, and {type(self.scene).__name__} "
                 f"has none (left={self.scene.left!r}, right={self.scene.right!r}): use artificial_cells=0"
+            )
+        if self.artificial_cells > 0 and self.artificial_cells + 1 > self.scene.pad:
+            raise ValueError(
+                f"pad must be > artificial_cells so the artificial layer stays on the grid; "
+                f"got pad={self.scene.pad}, artificial_cells={self.artificial_cells}"
             )
         check_cfl_limit(self.cfl_limit)
         if self.devices is not None:  # (simulate takes a count; a Model holds the devices)
@@ -566,6 +572,15 @@ def place_particles(model: Model, tree, n: int):
     return jax.tree.map(put, tree)
 
 
+def _faces(scene: AbstractScene, t):
+    """``scene.traction(t)``, one function for every scene: through ``_FACES`` its shape is traced
+    once per scene structure, not again for new parameter values."""
+    return scene.traction(t)
+
+
+_FACES = jax.jit(_faces)
+
+
 def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
     """Which faces carry a traction, read from the structure of ``scene.traction``.
 
@@ -581,7 +596,11 @@ def traction_sides(scene: AbstractScene) -> tuple[bool, ...]:
     dim = scene.dim
     if scene.traction is None:
         return (False,) * (2 * dim)
-    faces = jax.eval_shape(scene.traction, jax.ShapeDtypeStruct((), scene.h.dtype))
+    t = jax.ShapeDtypeStruct((), scene.h.dtype)
+    try:
+        faces = _FACES.eval_shape(scene, t)
+    except TypeError:  # a leaf that is not an array (a scene of the user's): traced at every call
+        faces = jax.eval_shape(scene.traction, t)
     if len(faces) != 2 * dim:
         raise ValueError(
             f"{type(scene).__name__}.traction must return {2 * dim} entries (low and high face of each "
@@ -716,18 +735,13 @@ def setup(model: Model) -> Setup:
         The ``Setup``.
 
     Raises:
-        ValueError: ``model`` is not a ``Model``, ``pad`` leaves no room for the artificial cells, or
-            the scene's traction has the wrong number of faces.
+        ValueError: ``model`` is not a ``Model``, or the scene's traction has the wrong number of
+            faces.
     """
     check_model(model)
     scene = model.scene
     grid = scene.grid()
     free = (scene.left == "free", scene.right == "free")
-    if model.artificial_cells > 0 and model.artificial_cells + 1 > scene.pad:
-        raise ValueError(
-            f"pad must be > artificial_cells so the artificial layer stays on the grid; "
-            f"got pad={scene.pad}, artificial_cells={model.artificial_cells}"
-        )
     walls = fixed_mask(grid.axes, scene.pad, scene.cells, scene.left, scene.right)
     check_structure(scene, model.artificial_cells)
     lay = scene.layout()

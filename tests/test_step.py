@@ -73,8 +73,11 @@ def test_artificial_cells_need_two_particles():
 
 
 def test_artificial_cells_need_padding():
+    """Refused by the Model, before the run is traced (it was raised from inside the run's tracing)."""
     with pytest.raises(ValueError, match="pad must be > artificial_cells"):
         jm.simulate(jm.GasExpansion(pad=2), jm.SPQ(), dt=1e-5, steps=1, artificial_cells=2)
+    with pytest.raises(ValueError, match="pad must be > artificial_cells"):
+        jm.Model(jm.GasExpansion(pad=2), jm.SPQ(), jm.FLIP(), artificial_cells=2)
 
 
 def test_wall_holds_node_velocity():
