@@ -712,7 +712,9 @@ def simulate(
         scene: the scene and its parameters.
         interpolator: ``SPQ()``, ``GIMP()``, ``GIMP(contiguous=True)``, ``CPDI()``, ``MPQ()``, ... (one of
             ``INTERPOLATORS``).
-        dt: time step (> 0), with ``steps``.
+        dt: time step (> 0), with ``steps``. A concrete ``dt`` is checked before anything is traced;
+            a traced one (under ``jax.jit`` or ``jax.vmap`` over ``dt``) is not, and a ``dt <= 0``
+            there runs backwards or stands still with status 0 (a NaN one breaks down, non-finite).
         steps: the number of steps of ``dt`` (>= 0), static: a new count compiles a new run.
         t_end: instead of ``dt`` and ``steps``, run to this time with the CFL-limited step
             ``cfl h / max_p(c_p + |v_p|)`` recomputed every step (``cfl``: default, or ``None``,
