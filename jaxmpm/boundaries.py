@@ -24,8 +24,7 @@ precisely:
   acceleration is ``a_i = f_i / m_i`` with the real particles' mass ``m_i``. The boundary traction
   still acts at the real material boundary point. With FLIP the body's momentum is unchanged by them;
   PIC and APIC give the particles the nodal velocity, which holds their momentum too, so there the
-  body's momentum changes where the motion is not linear. They are never part of the state, results
-  or errors.
+  body's momentum changes. They are never part of the state, results or errors.
 """
 
 import equinox as eqx

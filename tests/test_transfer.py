@@ -115,7 +115,7 @@ def test_artificial_cells_keep_momentum_with_flip_but_not_with_pic_or_apic():
     """The artificial particles add momentum to the nodal velocity and no force. FLIP's particle update
     divides the force by the real mass, so the body's momentum stays what it was (-225) to round-off.
     PIC and APIC give the particles the nodal velocity itself, which holds the artificial particles'
-    momentum: where the motion is not linear the body's momentum changes (measured over 30 steps: PIC
+    momentum, and the body's momentum changes (measured over 30 steps: PIC
     -237.67, APIC -228.97; the documentation's known limitations)."""
     scene = _two_blocks()
     p = {}
