@@ -273,9 +273,9 @@ class Model(eqx.Module):
 
     Raises:
         ValueError: an argument ``simulate`` would refuse, with its message (``check_parts``,
-            ``artificial_cells`` an integer >= 0, below ``scene.pad``, ``cfl_limit`` None or one
-            number > 0), an unknown
-            ``ordering`` or ``volume_average``, or ``devices`` that are not distinct devices.
+            ``artificial_cells`` an integer >= 0 and below ``scene.pad``, ``cfl_limit`` None or one
+            number > 0), an unknown ``ordering`` or ``volume_average``, or ``devices`` that are not
+            distinct devices.
     """
 
     scene: AbstractScene
