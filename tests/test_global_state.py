@@ -53,31 +53,17 @@ def test_the_command_line_called_in_process_gives_back_the_callers_float_type(ca
     """``main`` switches float64 on for its command and back off on return: a notebook that calls it
     with float64 off keeps float32 (a scene it made before still runs)."""
     import jax
+    from helpers import float32
 
     import jaxmpm as jm
     from jaxmpm.cli import main
 
-    x64 = bool(jax.config.jax_enable_x64)
-    jax.config.update("jax_enable_x64", False)
-    try:
+    with float32():
         scene = jm.GasExpansion(cells=4)
-        argv = [
-            "run",
-            "gas-expansion",
-            "cells=4",
-            "--interpolator",
-            "mpq",
-            "--dt",
-            "1e-5",
-            "--steps",
-            "2",
-            "--json",
-        ]
+        argv = "run gas-expansion cells=4 --interpolator mpq --dt 1e-5 --steps 2 --json".split()
         assert main(argv) == 0
         assert '"steps": 2' in capsys.readouterr().out
         assert jax.config.jax_enable_x64 is False
         assert jm.simulate(scene, jm.MPQ(), dt=1e-5, steps=2).state.x.dtype.name == "float32"
         assert main(["run", "no-such-scene"]) == 2  # and on a refusal
         assert jax.config.jax_enable_x64 is False
-    finally:
-        jax.config.update("jax_enable_x64", x64)
