@@ -307,6 +307,7 @@ def multiplicative_F_update(
 def tracked_corner_update(
     grid: Grid,
     body: Body,
+    F: Float[Array, "n dim dim"],
     corners: Float[Array, "nc dim"],
     v_new: Float[Array, "n_nodes dim"],
     dt: Float[Array, ""],
@@ -319,9 +320,17 @@ def tracked_corner_update(
     the map from the reference cube ``x_p + diag(r0) [-1, 1]^dim`` to the corners (exact for a
     parallelogram; in 1D ``(x_c2 - x_c1) / (2 r0)``).
 
+    In float64 ``F`` is read off the moved corners' positions, so it is the corners' geometry to the
+    last bit. In float32 that reading would carry the positions' round-off, ``eps |x| / (2 r0)`` a
+    step, which grows as the grid is refined (``F_max_rel`` 1.0e-3 at 256 cells of the manufactured
+    bar, where float64 has 3.9e-7); there ``F`` takes the same update as an increment, ``F += dt
+    corner_matrix(v_c) diag(1 / (2^dim r0))`` (``D`` is linear in the corners), equal in exact
+    arithmetic and accurate to float32's own precision.
+
     Args:
         grid: the background grid.
         body: the reference configuration (its ``r0`` and ``particle_corners``).
+        F: the deformation gradients at the start of the step (read in float32 only).
         corners: the body's tracked corners at the start of the step.
         v_new: nodal velocities at the end of the step.
         dt: the time step.
@@ -338,10 +347,10 @@ def tracked_corner_update(
         cidx = materialise(cidx)
     v_c = contract("ck,ckd->cd", s, grid.gather(cidx, v_new, cidx[:, :1] if grid.dim == 1 else None))
     corners = corners + dt * v_c
-    D = corner_matrix(body.particle_corners(corners))  # (n, dim, dim)
-    d = D.shape[-1]
-    F = D / ((2.0**d) * body.r0)[:, None, :]
-    return F, corners
+    scale = ((2.0**grid.dim) * body.r0)[:, None, :]
+    if corners.dtype == jnp.float64:
+        return corner_matrix(body.particle_corners(corners)) / scale, corners  # (n, dim, dim)
+    return F + dt * corner_matrix(body.particle_corners(v_c)) / scale, corners
 
 
 def any_axis(mask):

@@ -60,8 +60,8 @@ class CPDI2(AbstractInterpolator):
         return domain_stencil(idx, w, idx, s, corner_matrix(c))._replace(base=base, gbase=base)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
-        del stencil, F
-        return tracked_corner_update(grid, body, corners, v_new, dt)
+        del stencil
+        return tracked_corner_update(grid, body, F, corners, v_new, dt)
 
     def extent(self, r0, x, F, corners):
         c = parallelogram_corners(r0, x, F) if corners is None else corners

@@ -41,8 +41,8 @@ class MPQ(AbstractInterpolator):
         return st._replace(base=base, gbase=cidx[:, :, 0] if d == 1 else None)
 
     def update_F(self, grid, body, stencil, F, corners, v_new, dt):
-        del stencil, F
-        return tracked_corner_update(grid, body, corners, v_new, dt)
+        del stencil
+        return tracked_corner_update(grid, body, F, corners, v_new, dt)
 
     def extent(self, r0, x, F, corners):
         del r0, F
