@@ -342,7 +342,7 @@ class LoadedBlock(jm.AbstractScene):
 )
 def test_a_traction_on_a_wall_is_refused(face, left, right):
     """A wall holds its nodes at rest: a traction there would be dropped without a trace (the run
-    stayed at rest, status 0). Refused before anything is traced, naming the face."""
+    stayed at rest, status 0). Refused before the run is traced, naming the face."""
     scene = LoadedBlock(face=face, left=left, right=right)
     side = ("low", "high")[face % 2]
     with pytest.raises(
