@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import raw
+from helpers import float32, raw
 
 import jaxmpm as jm
 
@@ -139,14 +139,10 @@ def test_grid_box_takes_python_numbers_in_float32_without_a_warning():
     them; an explicit float64 request would warn that it is truncated."""
     import warnings
 
-    x64 = bool(jax.config.jax_enable_x64)
-    jax.config.update("jax_enable_x64", False)
-    try:
+    with float32():
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             grids = [box([0.0, 0.0], 0.1, (3, 3)), raw(jm.Grid)(x_min=[0.0], h=0.1, n_nodes=5)]
             grids.append(box(np.zeros(1), np.float64(0.1), (4,)))  # NumPy float64 too
         for grid in grids:
             assert grid.x_min.dtype == jnp.float32 and jnp.asarray(grid.h).dtype == jnp.float32
-    finally:
-        jax.config.update("jax_enable_x64", x64)
