@@ -484,14 +484,38 @@ def test_a_study_keeps_the_files_of_others_in_its_folder(capsys, tmp_path, monke
     assert "already holds files that `jaxmpm study talk` did not write (table.md)" in line
     assert "--overwrite" in line and ran == [] and (mine / "table.md").read_text() == "MINE"
     (mine / ".jaxmpm-study").write_text("convergence\n")  # another study's folder
+    (mine / "orders.md").write_text("theirs")  # a file of convergence's
     line = usage(capsys, ["study", "talk", "--small", "--out", str(mine)], "--out")
-    assert "already holds files that `jaxmpm study convergence` wrote (table.md)" in line
+    assert "holds files that `jaxmpm study convergence` wrote (orders.md) and others (table.md)" in line
+    (mine / "orders.md").unlink()
     assert main(["study", "talk", "--small", "--out", str(mine), "--overwrite"]) == 0
     assert (mine / ".jaxmpm-study").read_text() == "talk\n" and ran == [str(mine)]
     assert main(["study", "talk", "--small", "--out", str(mine)]) == 0  # its own folder, again
     fresh = tmp_path / "fresh"
     assert main(["study", "talk", "--small", "--out", str(fresh)]) == 0
     assert (fresh / ".jaxmpm-study").read_text() == "talk\n" and len(ran) == 3
+
+
+def test_a_refusal_credits_another_study_only_with_the_files_it_writes(capsys, tmp_path, monkeypatch):
+    """In a folder marked as another study's, the refusal names the files that study writes apart from
+    the rest, which are not its."""
+    import jaxmpm.studies.talk as talk
+
+    monkeypatch.setattr(talk, "main", lambda out, small: None)
+    folder = tmp_path / "theirs"
+    folder.mkdir()
+    (folder / ".jaxmpm-study").write_text("convergence\n")
+    (folder / "notes.txt").write_text("MINE")
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(folder)], "--out")
+    assert "`jaxmpm study convergence` wrote" not in line
+    assert "already holds files that `jaxmpm study talk` did not write (notes.txt)" in line
+    (folder / "orders.md").write_text("theirs")  # a file the convergence study writes
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(folder)], "--out")
+    assert "files that `jaxmpm study convergence` wrote (orders.md) and others (notes.txt)" in line
+    (folder / "notes.txt").unlink()
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(folder)], "--out")
+    assert "already holds files that `jaxmpm study convergence` wrote (orders.md);" in line
+    assert (folder / "orders.md").read_text() == "theirs"
 
 
 def test_a_file_named_as_the_study_mark_that_names_no_study_is_the_users(capsys, tmp_path, monkeypatch):

@@ -131,17 +131,33 @@ def _claim(folder, name: str, outputs, overwrite: bool) -> None:
     else:
         held = names
     if held and not overwrite:
-        other = owner is not None and owner != name
-        whose = f"`jaxmpm study {owner}` wrote" if other else f"`jaxmpm study {name}` did not write"
-        listed = held[0] if len(held) == 1 else f"{held[0]} and {len(held) - 1} more"
         raise UsageError(
-            f"--out {folder} already holds files that {whose} ({listed}); choose another folder, or pass "
+            f"--out {folder} already holds {_whose(held, name, owner)}; choose another folder, or pass "
             "--overwrite to write there anyway (a file of the same name as one of the study's is replaced)"
         )
     try:
         write_whole(mark, lambda f: f.write((name + "\n").encode()))
     except OSError as e:  # the folder took a probe file: a full disk, as for the study's own files
         raise CannotWrite(f"--out {folder}", e) from None
+
+
+def _whose(held: list[str], name: str, owner: str | None) -> str:
+    """The files ``held`` in the folder of study ``name`` that are not its own, as the refusal names
+    them: in a folder marked as another study's (``owner``), those that study writes apart from the
+    rest."""
+    if owner is None or owner == name:
+        return f"files that `jaxmpm study {name}` did not write ({_listed(held)})"
+    outputs = importlib.import_module(f"jaxmpm.studies.{STUDIES[owner]}").OUTPUTS
+    theirs = [n for n in held if n in outputs or outputs.leftover(n)]
+    rest = [n for n in held if n not in theirs]
+    if not theirs:
+        return f"files that `jaxmpm study {name}` did not write ({_listed(rest)})"
+    whose = f"files that `jaxmpm study {owner}` wrote ({_listed(theirs)})"
+    return f"{whose} and others ({_listed(rest)})" if rest else whose
+
+
+def _listed(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else f"{names[0]} and {len(names) - 1} more"
 
 
 _MARK_FILE = Files(MARK)
