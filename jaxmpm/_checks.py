@@ -176,7 +176,7 @@ def check_greater(name: str, value, bound: float) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr > bound):
-            raise ValueError(f"{name} must be > {bound}, got {show(arr)}")
+            raise ValueError(f"{name} must be > {bound}, got {show(arr)}{_rounded_onto(arr, bound)}")
 
 
 def check_less(name: str, value, bound: float) -> None:
@@ -194,7 +194,18 @@ def check_less(name: str, value, bound: float) -> None:
     if is_concrete(value):
         arr = np.asarray(value)
         if not np.all(arr < bound):
-            raise ValueError(f"{name} must be < {bound}, got {show(arr)}")
+            raise ValueError(f"{name} must be < {bound}, got {show(arr)}{_rounded_onto(arr, bound)}")
+
+
+def _rounded_onto(arr: np.ndarray, bound: float) -> str:
+    """For a refusal of ``arr`` by a strict ``bound``: where the value is below float64 and sits on
+    the bound, the note that it may be a value rounded there (``1 + 1e-8`` is ``1.0`` in float32)."""
+    if arr.dtype.kind == "f" and arr.dtype.itemsize < 8 and np.any(arr == bound):
+        return (
+            f" ({arr.dtype.name}, JAX's float type while jax_enable_x64 is off: a value within its "
+            f"rounding of {bound} reads as {bound}; switch float64 on for such a value)"
+        )
+    return ""
 
 
 def check_int(name: str, value, minimum: int) -> None:

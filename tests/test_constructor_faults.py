@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import float32
 
 import jaxmpm as jm
 from jaxmpm import explosives as ex
@@ -409,3 +410,16 @@ def test_a_jwl_rows_check_is_a_switch():
         with pytest.raises(ValueError, match="check must be True or False"):
             inspect.unwrap(ex.jwl)("tnt", check=bad)  # without the suite's type checks: what a user runs
     assert ex.jwl("tnt", check=False)[0] == ex.jwl("tnt")[0]
+
+
+def test_a_bound_that_float32_rounds_a_value_onto_says_so():
+    """With float64 off a scene's numbers are float32: gamma = 1 + 1e-8 reads as 1.0, and the refusal
+    says that the value was rounded, not that 1.0 was given."""
+    with float32():
+        with pytest.raises(ValueError, match=r"gamma must be > 1\.0, got 1\.0 \(float32") as caught:
+            jm.GasExpansion(gamma=1 + 1e-8)
+        assert "jax_enable_x64" in str(caught.value)
+        with pytest.raises(ValueError, match=r"gamma must be > 1\.0, got 0\.5$"):
+            jm.GasExpansion(gamma=0.5)
+    with pytest.raises(ValueError, match=r"gamma must be > 1\.0, got 1\.0$"):  # float64: as given
+        jm.GasExpansion(gamma=1.0)
