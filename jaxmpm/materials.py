@@ -69,7 +69,9 @@ class AbstractMaterial(eqx.Module):
         F F^T`` (Marsden & Hughes, "Mathematical foundations of elasticity", ch. 6). In 1D it is
         ``F sqrt(W''(F) / rho0)``, the closed forms of the gas and the neo-Hookean solid (not of
         ``LinearElastic``, whose small-strain speed leaves out the factor ``F``); in 2D and 3D it
-        serves models without one (a Hessian of ``W`` and two small eigenproblems per particle).
+        serves models without one (a Hessian of ``W`` and two small eigenproblems per particle). Its
+        derivative holds the principal directions fixed: the speed's own for an isotropic ``W``, and
+        finite where principal stretches repeat (``F = I``).
 
         Args:
             F: deformation gradient of one particle.
@@ -79,7 +81,12 @@ class AbstractMaterial(eqx.Module):
             The Eulerian wave speed ``c``.
         """
         H = jax.hessian(self.energy_density)(F)  # (dim, dim, dim, dim): d2W / dF_iJ dF_kL
-        _, N = jnp.linalg.eigh(F @ F.T)
+        # The directions are held fixed under differentiation. For an isotropic energy the speed is
+        # stationary in n at a principal direction (a reflection through the other principal
+        # directions maps the state onto itself), so this is the speed's own derivative; and where
+        # principal stretches repeat (F = I, any isotropic stretch) the eigenvectors' derivative is
+        # infinite, which would make the derivative of every run that calls this NaN.
+        N = jax.lax.stop_gradient(jnp.linalg.eigh(F @ F.T)[1])
 
         def c2(n):
             m = F.T @ n

@@ -84,6 +84,56 @@ def test_acoustic_speed_in_2d_and_3d(dim):
         assert float(mat.sound_speed(eye, rho0)) == pytest.approx(p_wave, rel=1e-12)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_acoustic_speed_has_a_finite_derivative_where_principal_stretches_repeat(dim):
+    """At rest (F = I) and under an isotropic stretch every direction is principal (B = F F^T has one
+    eigenvalue), where the derivative of B's eigenvectors is infinite. The speed's derivative holds the
+    directions fixed: finite there, and at a generic F the speed's own derivative (central
+    differences). Every particle at rest calls it: the viscosity and the CFL step do."""
+    rho0 = jnp.asarray(2.5)
+    mat = MATERIALS["neo-hookean"]
+    speed = lambda F: mat.sound_speed(F, rho0)
+    for F in (jnp.eye(dim), 1.1 * jnp.eye(dim)):
+        g = jax.grad(speed)(F)
+        assert bool(jnp.all(jnp.isfinite(g))), (F, g)
+        t = jax.jvp(speed, (F,), (jnp.ones_like(F),))[1]
+        assert bool(jnp.isfinite(t)), (F, t)
+    F = random_F(dim, 5)
+    g = np.asarray(jax.grad(speed)(F))
+    eps = 1e-6
+    for i in range(dim):
+        for j in range(dim):
+            dF = jnp.zeros_like(F).at[i, j].set(eps)
+            fd = (float(speed(F + dF)) - float(speed(F - dF))) / (2 * eps)
+            assert g[i, j] == pytest.approx(fd, rel=1e-6, abs=1e-6 * float(np.abs(g).max()))
+
+
+@pytest.mark.slow
+def test_a_2d_neo_hookean_run_with_viscosity_has_a_finite_derivative():
+    """Two neo-Hookean blocks meeting in 2D, the artificial viscosity on (it calls the wave speed of
+    every particle, the ones at rest included, every step): the derivative of the run with respect to
+    mu, in both modes, is the central difference's."""
+    from jaxmpm.geometry import Box
+
+    def f(mu):
+        parts = tuple(
+            jm.Region(
+                Box((x0, 0.0), (x0 + 2.0, 2.0)), jm.NeoHookean(lam=2e6, mu=mu), rho0=1000.0, velocity=(u, 0.0)
+            )
+            for x0, u in ((0.0, 0.3), (2.0, -0.3))
+        )
+        scene = jm.Bodies(parts=parts, dim=2, cells=4, h=0.25, ppc=2, pad=4)
+        sol = jm.simulate(scene, jm.CPDI(), dt=2e-5, steps=20, viscosity=jm.ArtificialViscosity())
+        return jnp.sum(sol.state.x[:, 0] * sol.state.v[:, 0])
+
+    mu = 1.3e6
+    fd = (float(f(mu * (1 + 1e-4))) - float(f(mu * (1 - 1e-4)))) / (2e-4 * mu)
+    grad = float(jax.grad(f)(mu))
+    tangent = float(jax.jvp(f, (mu,), (1.0,))[1])
+    assert fd != 0.0
+    assert grad == pytest.approx(fd, rel=1e-5) and tangent == pytest.approx(grad, rel=1e-10)
+
+
 def test_bad_poisson_ratio_is_named():
     with pytest.raises(ValueError, match="nu must be < 0.5"):
         jm.LinearElastic(E=1.0, nu=0.5)
