@@ -70,6 +70,7 @@ import time
 import warnings
 from collections.abc import Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -98,6 +99,7 @@ from .scenes import AbstractScene
 from .scenes.detonation import Detonation
 from .scenes.gas_slab import GasSlab, free_surface, pad_for
 from .scenes.gurney import AbstractGurney, GurneySlab
+from .scenes.manufactured import Manufactured
 from .sensitivity import check_names, continuous_parameters, static_parameters
 from .status import LEFT_GRID
 
@@ -160,7 +162,10 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
     of the run. With ``explosive="gamma-law"`` the run does not use the JWL constants ``A, B, R1, R2,
     w``; with ``"jwl"`` not ``gamma``; with a row of ``jaxmpm.explosives.EXPLOSIVES`` (``"compb"``,
     ...) none of ``D, gamma, rho0, A, B, R1, R2, w``: the row has its own. A ``Detonation`` of such a
-    row does not use ``D, gamma, rho0``. Other scenes use every continuous parameter.
+    row does not use ``D, gamma, rho0``. A ``Manufactured`` bar does not use the other model's
+    constants (``model="neo-hookean"``: ``P0, gamma, p_atm``; ``"gas"``: ``lam, mu``), nor, with a
+    ``displacement_fn`` of the user's, the amplitude ``A``, unless the field reads them. Other scenes
+    use every continuous parameter.
 
     Args:
         scene: the scene, or its class (then only what no run of it uses: ``sqrt_2E``).
@@ -169,6 +174,8 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
         Name to a clause saying why (empty where the run uses every continuous parameter).
     """
     cls = scene if isinstance(scene, type) else type(scene)
+    if issubclass(cls, Manufactured):
+        return {} if isinstance(scene, type) else _manufactured_unused(scene)
     if issubclass(cls, Detonation):
         if isinstance(scene, type) or scene.explosive == "gamma-law":
             return {}
@@ -199,6 +206,41 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
         )
     out.update(dict.fromkeys(names, why))
     return out
+
+
+_MANUFACTURED_MODELS = {"neo-hookean": ("lam", "mu"), "gas": ("P0", "gamma", "p_atm")}
+
+
+def _manufactured_unused(scene: Manufactured) -> dict[str, str]:
+    """``unused`` of a ``Manufactured`` bar: the other model's constants, and with a field of the
+    user's the default field's amplitude ``A``, each unless the field reads it."""
+    out = {}
+    for model, names in _MANUFACTURED_MODELS.items():
+        if model != scene.model:
+            why = (
+                f"the run of model={scene.model} does not use it (a constant of model={model}, which uses it)"
+            )
+            out.update(dict.fromkeys(names, why))
+    if scene.displacement_fn is not None:
+        out["A"] = "displacement_fn does not read it (it is the default field's amplitude)"
+        read = _read_by(scene.displacement_fn, scene, tuple(out))
+        out = {name: why for name, why in out.items() if name not in read}
+    return out
+
+
+def _read_by(fn, scene: AbstractScene, names: tuple[str, ...]) -> set[str]:
+    """Which of the scene's parameters ``names`` the field ``fn(scene, X, t)`` reads: those its traced
+    program takes as an operand (a value read and then multiplied by zero counts as read)."""
+    point = jax.ShapeDtypeStruct((scene.dim,), scene.h.dtype)
+    time_ = jax.ShapeDtypeStruct((), scene.h.dtype)
+
+    def field(values, X, t):
+        return fn(eqx.tree_at(lambda z: tuple(getattr(z, n) for n in names), scene, values), X, t)
+
+    closed = jax.make_jaxpr(field)(tuple(getattr(scene, n) for n in names), point, time_)
+    jaxpr = closed.jaxpr
+    operands = {id(v) for eqn in jaxpr.eqns for v in eqn.invars} | {id(v) for v in jaxpr.outvars}
+    return {n for n, v in zip(names, jaxpr.invars[: len(names)]) if id(v) in operands}
 
 
 class CalibrationError(RuntimeError):

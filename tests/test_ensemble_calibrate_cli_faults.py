@@ -137,6 +137,37 @@ def test_ensemble_refuses_a_constant_the_run_does_not_use(capsys, explosive, nam
         jm.ensemble(scene, jm.CPDI(), {name: [1.0, 2.0]}, dt=1e-9, steps=1)
 
 
+def test_a_manufactured_run_does_not_use_the_other_models_constants():
+    """The neo-Hookean bar never reads the gas constants, the gas bar never the neo-Hookean ones, and
+    a field of the user's that does not read the amplitude A leaves A unused: an ensemble refuses to
+    vary them (every member would run the same), and they are not fittable. A field that reads them
+    uses them."""
+    solid, gas = jm.Manufactured(cells=4), jm.Manufactured(cells=4, model="gas")
+    assert set(cal.unused(solid)) == {"P0", "gamma", "p_atm"} and set(cal.unused(gas)) == {"lam", "mu"}
+    assert "the run of model=neo-hookean does not use it" in cal.unused(solid)["P0"]
+    assert {"A", "lam", "mu"} <= set(ensemble_module.variable_parameters(solid))
+    with pytest.raises(ValueError, match="vary names 'P0', which the run does not use: the run of model"):
+        jm.ensemble(solid, jm.CPDI(), {"P0": [1.0, 100.0]}, dt=1e-3, steps=2)
+    with pytest.raises(ValueError, match="vary names 'mu', which the run does not use: the run of model=gas"):
+        jm.ensemble(gas, jm.CPDI(), {"mu": [1.0, 2.0]}, dt=1e-3, steps=2)
+
+    def stretch(scene, X, t):  # reads neither A nor the gas constants
+        return 0.01 * X * t
+
+    def wave(scene, X, t):  # reads A, and P0 though the bar is neo-Hookean
+        return scene.A * jnp.sin(X) * t + 1e-9 * scene.P0 * X
+
+    own = jm.Manufactured(cells=4, ends="traction", displacement_fn=stretch)
+    assert set(cal.unused(own)) == {"A", "P0", "gamma", "p_atm"}
+    assert "displacement_fn does not read it" in cal.unused(own)["A"]
+    read = jm.Manufactured(cells=4, ends="traction", displacement_fn=wave)
+    assert set(cal.unused(read)) == {"gamma", "p_atm"}
+    ens = jm.ensemble(read, jm.CPDI(), {"A": [1e-4, 2e-4], "P0": [1.0, 2.0]}, dt=1e-3, steps=2)
+    x = np.asarray(ens.solution.state.x)
+    assert list(ens.status) == [0, 0] and not np.array_equal(x[0], x[1])
+    assert "A" not in cal.fittable(own) and "A" in cal.fittable(read)
+
+
 def test_a_detonation_of_a_named_explosive_does_not_use_the_gamma_laws_constants():
     """A JWL row brings its own detonation speed, density and products: D, gamma and rho0 do not
     change the run, so an ensemble refuses them (the gamma law's scene varies them)."""
