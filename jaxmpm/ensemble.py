@@ -222,12 +222,12 @@ def _check_vary_names(scene: AbstractScene, vary: Mapping) -> None:
 
 def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
     """Each member's values within what its parameters allow: ``dt``, ``t_end`` and ``cfl`` > 0, and
-    each member's scene accepted by the scene's own checks (the parameters not varied at the base
-    scene's values). With one scene parameter varied, its smallest and largest values are checked;
-    with two or more, every distinct member's values together (about 1 ms a member), since a check
-    can tie them (``P0 > p_atm``): an extreme of one is checked with its own member's other values,
-    never with the base scene's. A refused value is named with its member's index."""
-    base = scene.parameter_values()
+    each member's scene accepted by the scene's own checks (the scene itself with the member's
+    values: what it does not vary kept, a ``Bodies`` scene's parts too). With one scene parameter
+    varied, its smallest and largest values are checked; with two or more, every distinct member's
+    values together (about 1 ms a member), since a check can tie them (``P0 > p_atm``): an extreme
+    of one is checked with its own member's other values, never with the base scene's. A refused
+    value is named with its member's index."""
     for name, a in arrays.items():
         if name in RUN_NAMES and not np.all(a > 0):
             i = int(np.flatnonzero(~(a > 0))[0])
@@ -238,7 +238,7 @@ def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
         a = arrays[name]
         for i in (int(np.argmin(a)), int(np.argmax(a))):
             try:
-                type(scene)(**{**base, name: float(a[i])})
+                dataclasses.replace(scene, **{name: float(a[i])})
             except ValueError as e:
                 refused = (
                     f"vary[{name!r}] holds {a[i]:g}, which {type(scene).__name__} refuses: {e} (member {i})"
@@ -251,7 +251,7 @@ def _check_ranges(scene: AbstractScene, arrays: dict[str, np.ndarray]) -> None:
     for i in sorted(int(k) for k in first):
         values = {name: float(rows[i, j]) for j, name in enumerate(joint)}
         try:
-            type(scene)(**{**base, **values})
+            dataclasses.replace(scene, **values)
         except ValueError as e:
             given = ", ".join(f"{k}={v:g}" for k, v in values.items())
             refused = f"member {i} of vary ({given}) is refused by {type(scene).__name__}: {e}"

@@ -254,3 +254,18 @@ def test_a_gradient_of_an_error_that_is_not_finite_is_refused(mode):
     nan = lambda scene, sol: jnp.asarray(jnp.nan)  # noqa: E731
     with pytest.raises(ValueError, match=r"^gradient\(\) differentiates a finite error, and the error of"):
         jm.gradient(gas(), jm.MPQ(), ["beta"], error=nan, mode=mode, **RUN)
+
+
+def test_an_ensemble_of_a_scene_of_bodies_checks_its_members_on_that_scene():
+    """A ``Bodies`` scene holds its parts beside its parameters: each member's values are checked on
+    the scene itself (its parts kept), and a refused one is named with its member."""
+    from jaxmpm.geometry import Box
+
+    part = jm.Region(Box(0.0, 1.0), jm.NeoHookean(lam=1.0, mu=1.0), rho0=1.0, velocity=0.1)
+    scene = jm.Bodies(parts=(part,), cells=4, h=0.25, pad=4)
+    ens = jm.ensemble(scene, jm.CPDI(), {"h": [0.25, 0.3]}, dt=1e-3, steps=2)
+    assert list(ens.status) == [0, 0]
+    one = jm.simulate(jm.Bodies(parts=(part,), cells=4, h=0.3, pad=4), jm.CPDI(), dt=1e-3, steps=2)
+    np.testing.assert_allclose(np.asarray(ens.solution.state.x[1]), np.asarray(one.state.x), rtol=1e-14)
+    with pytest.raises(ValueError, match=r"^vary\['h'\] holds -0.1, which Bodies refuses: h must be > 0"):
+        jm.ensemble(scene, jm.CPDI(), {"h": [0.25, -0.1]}, dt=1e-3, steps=2)
