@@ -52,8 +52,8 @@ def test_gurney_formulas_at_their_exact_values():
 def test_the_gurney_velocity_follows_the_explosive(explosive, sqrt_2E, slab, cylinder):
     """Not given, sqrt_2E is the explosive's tabulated Gurney velocity (Kennedy's, in Cooper 1996):
     4 cm of TNT on 1 cm of 4340 steel, M/C = 1.198, drives the plate at 1185 m/s by Gurney's formula."""
-    scenes = (
-        (jm.GurneySlab(explosive=explosive, cells=4, ppc=1, pad=4), slab),
+    scenes = (  # (5 cells: the split at 0.8 falls on a particle's edge, so the body is 4 cm on 1 cm)
+        (jm.GurneySlab(explosive=explosive, cells=5, ppc=1, pad=4), slab),
         (jm.GurneyCylinder(explosive=explosive, cells=10, ppc=1, pad=4), cylinder),
     )
     for scene, v in scenes:

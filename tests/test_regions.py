@@ -581,3 +581,34 @@ def test_a_mie_gruneisen_energy_below_its_reference_is_no_breakdown():
     fail = sol.failure()
     assert fail is not None and fail["quantities"] == [jm.status.QUANTITY[jm.status.NEGATIVE_ENERGY]]
     assert int(sol.body.region[int(sol.state.fail_particle)]) == 1
+
+
+def _seeded_regions(scene):
+    body = jm.setup(jm.Model(scene, jm.CPDI(), jm.FLIP())).body
+    return np.asarray(body.X[:, 0]), np.asarray(body.region), np.asarray(body.m)
+
+
+def test_a_split_inside_a_particles_domain_is_reported_where_the_seeded_regions_meet():
+    """The regions meet at a particle domain's edge; a split given inside a domain moves to the edge
+    after the last particle at or before it, and the scene's reference values describe the body
+    seeded: the shock tube's X0 (its exact solution and initial velocity) and the Gurney slab's
+    charge, plate and mass ratio. A split on an edge is kept as given, to the bit."""
+    tube = jm.ShockTube(cells=10, h=0.1, ppc=1, x0=0.51, u_l=0.5)
+    X, region, _ = _seeded_regions(tube)
+    edge = X[region == 0].max() + 0.05  # the last left particle's domain ends half a spacing on
+    assert float(tube.X0) == pytest.approx(edge, rel=1e-14) and abs(float(tube.X0) - 0.5) < 1e-14
+    on = jm.ShockTube(cells=10, h=0.1, ppc=1, x0=0.45, u_l=0.5)  # a particle centre on the split: left
+    X, region, _ = _seeded_regions(on)
+    v0 = np.asarray(on.initial_velocity(jnp.asarray(X)))
+    np.testing.assert_array_equal(v0, np.where(region == 0, 0.5, 0.0))
+    assert float(jm.ShockTube().X0) == 0.5 * float(jm.ShockTube().length)  # on an edge: as given
+
+    slab = jm.GurneySlab(cells=10, split=0.81, pad=40)
+    X, region, m = _seeded_regions(slab)
+    aligned = jm.GurneySlab(cells=10, split=0.8, pad=40)
+    assert float(slab.charge) == pytest.approx(0.8 * float(slab.L), rel=1e-14)
+    assert float(slab.mass_ratio) == pytest.approx(m[region == 1].sum() / m[region == 0].sum(), rel=1e-12)
+    assert float(slab.gurney_velocity()) == pytest.approx(float(aligned.gurney_velocity()), rel=1e-14)
+    default = jm.GurneySlab()
+    assert float(default.charge) == default.split * float(default.L)
+    assert float(default.plate) == (1.0 - default.split) * float(default.L)

@@ -23,7 +23,7 @@ from .detonation import (
     _check_gamma_law_state,
     explosive_eos,
 )
-from .shock_tube import check_split
+from .shock_tube import check_split, seeded_split
 
 
 def gurney_sandwich(sqrt_2E: Float[ArrayLike, ""], M_over_C: Float[ArrayLike, ""]) -> Float[Array, ""]:
@@ -233,8 +233,9 @@ class AbstractGurney(AbstractScene):
 class GurneySlab(AbstractGurney):
     """A slab of explosive lit at its free back face ``X = 0``, driving a metal plate on its far face.
 
-    The setup of Uintah's MPM Gurney input: explosive on ``[0, charge]``, ``charge = split L``
-    (``AbstractGurney``), then ``plate`` of metal on ``[charge, L]``. Both ends are free.
+    The setup of Uintah's MPM Gurney input: explosive on ``[0, charge]``, ``charge = split L`` (where
+    the split falls on a particle domain's edge; ``split``), then ``plate`` of metal on ``[charge,
+    L]``. Both ends are free.
     The products push the plate, which rings and tends to a terminal velocity; Gurney's formula for an
     open-faced sandwich, ``gurney_velocity``, estimates it from the explosive's Gurney constant
     ``sqrt_2E`` and the mass ratio (a model accurate to a few per cent). For Comp B (``sqrt(2E) = 2.70``
@@ -247,7 +248,8 @@ class GurneySlab(AbstractGurney):
     Attributes:
         L: charge and plate together (m).
         split: the charge's share of ``L`` (static, in ``(0, 1)``; a particle centre at the split is
-            the charge's).
+            the charge's; given inside a particle's domain, the charge ends at the domain's far edge,
+            and ``charge``, ``plate`` and ``mass_ratio`` are those of the body seeded).
         cells: cells across charge and plate together (``h = L / cells``; static).
         ppc, pad: as for every scene.
         sqrt_2E, D, gamma, rho0, A, B, R1, R2, w, burn_width, explosive, products, burn, metal, strength:
@@ -286,13 +288,14 @@ class GurneySlab(AbstractGurney):
 
     @property
     def charge(self) -> Float[Array, ""]:
-        """The charge's thickness, ``split L``."""
-        return self.split * self.L
+        """The seeded charge's thickness, ``split L`` where ``split`` falls on a particle domain's
+        edge, else to the edge after the last particle at or before it (``seeded_split``)."""
+        return seeded_split(self.split, self.cells, self.ppc) * self.L
 
     @property
     def plate(self) -> Float[Array, ""]:
-        """The plate's thickness, ``(1 - split) L``."""
-        return (1.0 - self.split) * self.L
+        """The seeded plate's thickness, ``L`` less the charge's (``(1 - split) L`` on an edge)."""
+        return (1.0 - seeded_split(self.split, self.cells, self.ppc)) * self.L
 
     def regions(self) -> tuple[Region, Region]:
         """The charge (lit at ``X = 0``, with its detonation energy) and the plate, both at rest.

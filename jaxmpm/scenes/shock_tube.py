@@ -4,6 +4,7 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import check_finite, check_positive, is_concrete, python_int
@@ -38,6 +39,26 @@ def check_split(name: str, fraction: float, cells: int, ppc: int) -> None:
             f"at {cut:.6g} cells, and a particle on each side needs a split in [{first:.6g}, {last:.6g}) "
             f"cells (the particle centres of ppc = {ppc}; move {name} or raise cells)"
         )
+
+
+def seeded_split(fraction: float, cells: int, ppc: int) -> float:
+    """Where the two sides of a tube split at ``fraction`` of its length meet once seeded: at the edge
+    of the last particle domain on the left side (the particles whose centres lie at or before the
+    split, as ``split_tube`` assigns them), a fraction of the length. A split on a domain edge
+    (``fraction cells ppc`` whole) is that same fraction; one inside a domain moves to the edge after
+    the particle, whose whole mass the left side holds.
+
+    Args:
+        fraction: where the tube splits, a fraction of its length in ``(0, 1)``.
+        cells: the tube's cells.
+        ppc: particles per cell.
+
+    Returns:
+        ``n / (cells ppc)``, ``n`` the particles on the left side.
+    """
+    centres = (np.arange(cells * ppc) + 0.5) / ppc  # in cells, as the regions' shapes test them
+    n = int(np.count_nonzero(centres <= fraction * cells))
+    return n / (cells * ppc)
 
 
 def split_tube(cells: int, x0: float) -> tuple[AbstractShape, AbstractShape]:
@@ -78,7 +99,9 @@ class ShockTube(AbstractScene):
         rho_r, u_r, p_r: the right state.
         gamma: ratio of specific heats of both gases, > 1.
         x0: where the states meet, as a fraction of the tube's length ``L = cells h`` (static, in
-            ``(0, 1)``; the regions are fixed by it and by ``cells``).
+            ``(0, 1)``; the regions are fixed by it and by ``cells``). A particle centre on it is the
+            left state's; given inside a particle's domain, the states meet at the domain's far edge,
+            and ``X0`` (the exact solution's) is there.
         h, cells, ppc, pad: as for every scene (``L = cells h``; the default ``h`` makes ``L = 1``).
     """
 
@@ -140,8 +163,9 @@ class ShockTube(AbstractScene):
 
     @property
     def X0(self) -> Float[Array, ""]:
-        """Where the states meet, ``x0 L``."""
-        return self.x0 * self.length
+        """Where the seeded states meet: ``x0 L`` where ``x0`` falls on a particle domain's edge, else
+        the edge after the last particle at or before it (``seeded_split``)."""
+        return seeded_split(self.x0, self.cells, self.ppc) * self.length
 
     def material(self):
         return IdealGas(gamma=self.gamma)
