@@ -30,7 +30,9 @@ class Blast(AbstractScene):
     By default only the quarter (octant) ``[0, a]^dim`` of the charge ``[-a, a]^dim`` is simulated,
     with planes of symmetry at ``X_a = 0``; ``full=True`` simulates the whole charge, seeded on
     ``[0, cells h]^dim`` (centre at ``cells h / 2``), with every face free. A quarter run equals the
-    matching part of a full run to round-off, and a full run keeps its total momentum at zero.
+    matching part of a full run to round-off with SPQ, GIMP and MPQ; with CPDI it does not (its
+    corners, built from a sheared ``F``, cross the plane, where a roller is not a mirror), and a full
+    run keeps its total momentum at zero.
 
     Attributes:
         P0: charge pressure at ``J = 1`` (Pa), > p_atm.

@@ -28,7 +28,8 @@ class Riemann(AbstractScene):
     ``F_right`` right of it, and the data break into a left and a right wave (each a rarefaction
     fan or a shock) around a star state ``(F*, v*)`` that ``jaxmpm.exact`` computes from the wave
     curves. Both ends are free and carry their state's traction, so the solution is exact there
-    until a wave arrives: ``t_valid`` is when the first wave reaches an end.
+    until a wave arrives (with uGIMP not from the first step: its undeformed domains do not see the
+    left state's compression): ``t_valid`` is when the first wave reaches an end.
 
     The defaults are a shock tube: gas compressed to ``F = 0.5`` (pressure 2^1.4 = 2.64 times that
     on the right) next to gas at ``F = 1``, both at rest: a rarefaction runs left, a shock right.

@@ -23,7 +23,8 @@ class VacuumExpansion(AbstractScene):
     (the head then reaches the wall). ``smooth(X, t)`` marks the particles away from both fronts.
 
     The free end carries no traction (vacuum). The default ``pad`` leaves room for the front to
-    run to ``t_valid`` with ``gamma >= 1.4``: it travels ``2 L / (gamma - 1)`` by then.
+    run to ``t_valid`` with ``gamma >= 1.4`` at the default ``cells``: it travels ``2 L / (gamma -
+    1)`` by then, ``5 L`` at 1.4, so more cells need a ``pad`` of over five times ``cells``.
 
     Attributes:
         P0: initial pressure; gamma: adiabatic exponent; rho0: initial density.
