@@ -100,7 +100,9 @@ class AbstractMaterial(eqx.Module):
         self, F: Float[Array, "dim dim"], sigma: Float[Array, "dim dim"], rho0: Float[Array, ""]
     ) -> Float[Array, ""]:
         """``sound_speed(F, rho0)`` given also ``sigma = stress(F)``, which a model may reuse to skip
-        work (the gas: a power of ``J``). The step's stability check calls it every step.
+        work (the gas: a power of ``J``). The step's stability check calls it every step. (With
+        ``volume_average``, the stored stress is that of the averaged ``F`` while ``F`` is the
+        particle's own: the gas's speed is then off by ``sqrt(J / J_avg)``, a few per cent.)
 
         Args:
             F: deformation gradient of one particle.
@@ -253,7 +255,7 @@ class NeoHookean(AbstractMaterial):
             return self.acoustic_speed(F, rho0)
         f = F[0, 0]
         # dsigma/dF = lambda (1 - ln F) / F^2 + mu (1 + 1 / F^2); it turns negative (the material
-        # softens) only for ln F > 1 + mu / lambda, where the speed is taken as zero.
+        # softens) only for ln F > 1 + mu (1 + F^2) / lambda, where the speed is taken as zero.
         stiffness = self.lam * (1.0 - jnp.log(f)) / (f * f) + self.mu * (1.0 + 1.0 / (f * f))
         return f * jnp.sqrt(jnp.maximum(stiffness, 0.0) / rho0)
 
@@ -448,8 +450,10 @@ class MieGruneisen(AbstractStatelessEOS):
 
     (Meyers, "Dynamic Behavior of Materials", 1994, sec. 5.3; the form of Uintah's MPM
     ``MieGruneisenEOS``). The same expression is used in tension (``eta < 0``), where it is smooth
-    and close to linear. ``MIE_GRUNEISEN`` holds standard constants of copper, 4340 steel and
-    6061-T6 aluminium. No internal variables.
+    and close to linear. The Hugoniot has a pole at ``eta = 1 / s`` (copper: ``rho = 3.05 rho_ref``);
+    the model holds below it. Past it the pressure falls as the density rises and the sound speed
+    is taken as 0, which the run does not report as a breakdown. ``MIE_GRUNEISEN`` holds standard
+    constants of copper, 4340 steel and 6061-T6 aluminium. No internal variables.
 
     Attributes:
         rho_ref: reference (ambient) density of the Hugoniot.
