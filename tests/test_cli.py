@@ -3,6 +3,7 @@
 import json
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -249,3 +250,19 @@ def test_console_script():
         text=True,
     )
     assert proc.returncode == 0 and json.loads(proc.stdout)["params"]["cells"] == 3
+
+
+def test_python_m_jaxmpm_is_the_command(capsys, monkeypatch):
+    """``python -m jaxmpm`` runs the ``jaxmpm`` command (as ``python -m jaxmpm.cli`` does)."""
+    import runpy
+    import signal
+
+    monkeypatch.setattr(sys, "argv", ["jaxmpm", "scenes", "--json"])
+    handler = signal.getsignal(signal.SIGINT)  # the command answers Ctrl-C its own way
+    try:
+        with pytest.raises(SystemExit) as exited:
+            runpy.run_module("jaxmpm", run_name="__main__")
+    finally:
+        signal.signal(signal.SIGINT, handler)
+    assert exited.value.code == 0
+    assert "gas-expansion" in json.loads(capsys.readouterr().out)

@@ -1,0 +1,5 @@
+"""``python -m jaxmpm``: the ``jaxmpm`` command."""
+
+from .cli import console
+
+console()
