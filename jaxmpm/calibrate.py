@@ -162,7 +162,8 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
     of the run. With ``explosive="gamma-law"`` the run does not use the JWL constants ``A, B, R1, R2,
     w``; with ``"jwl"`` not ``gamma``; with a row of ``jaxmpm.explosives.EXPLOSIVES`` (``"compb"``,
     ...) none of ``D, gamma, rho0, A, B, R1, R2, w``: the row has its own. A ``Detonation`` of such a
-    row does not use ``D, gamma, rho0``. A ``Manufactured`` bar does not use the other model's
+    row does not use ``D, gamma, rho0``. With ``burn="volume"`` (the beta burn) the detonation and
+    Gurney scenes do not use ``burn_width``. A ``Manufactured`` bar does not use the other model's
     constants (``model="neo-hookean"``: ``P0, gamma, p_atm``; ``"gas"``: ``lam, mu``), nor, with a
     ``displacement_fn`` of the user's, the amplitude ``A``, unless the field reads them. Other scenes
     use every continuous parameter.
@@ -177,19 +178,23 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
     if issubclass(cls, Manufactured):
         return {} if isinstance(scene, type) else _manufactured_unused(scene)
     if issubclass(cls, Detonation):
-        if isinstance(scene, type) or scene.explosive == "gamma-law":
+        if isinstance(scene, type):
             return {}
+        out = _burn_unused(scene)
+        if scene.explosive == "gamma-law":
+            return out
         why = (
             f"the run of explosive={scene.explosive} does not use it: the products are that row of "
             "jm.explosives.EXPLOSIVES, with its own detonation speed, density and constants "
             "(explosive=gamma-law takes D, gamma and rho0 from the scene)"
         )
-        return dict.fromkeys(("D", "gamma", "rho0"), why)
+        return {**dict.fromkeys(("D", "gamma", "rho0"), why), **out}
     if not issubclass(cls, AbstractGurney):
         return {}
     out = {"sqrt_2E": "it is the constant of Gurney's formula (gurney_velocity), not of the run"}
     if isinstance(scene, type):
         return out
+    out.update(_burn_unused(scene))
     explosive = scene.explosive
     if explosive == "gamma-law":
         names = _JWL_CONSTANTS
@@ -206,6 +211,15 @@ def unused(scene: AbstractScene | type[AbstractScene]) -> dict[str, str]:
         )
     out.update(dict.fromkeys(names, why))
     return out
+
+
+def _burn_unused(scene: Detonation | AbstractGurney) -> dict[str, str]:
+    """``unused`` of a programmed burn: a volume burn lights by compression alone, without the time
+    burn's length ``burn_width``."""
+    if scene.burn != "volume":
+        return {}
+    why = "the run of burn=volume does not use it (the time burn's length: burn=time or max uses it)"
+    return {"burn_width": why}
 
 
 _MANUFACTURED_MODELS = {"neo-hookean": ("lam", "mu"), "gas": ("P0", "gamma", "p_atm")}

@@ -137,6 +137,23 @@ def test_ensemble_refuses_a_constant_the_run_does_not_use(capsys, explosive, nam
         jm.ensemble(scene, jm.CPDI(), {name: [1.0, 2.0]}, dt=1e-9, steps=1)
 
 
+def test_a_volume_burn_does_not_use_the_burn_width():
+    """The beta burn lights a particle by its compression alone: burn_width (the time burn's length) is
+    not read, so an ensemble refuses to vary it; the time and max burns read it."""
+    why = "the run of burn=volume does not use it"
+    for scene in (jm.Detonation(cells=8, burn="volume"), jm.GurneySlab(cells=5, ppc=1, pad=4, burn="volume")):
+        assert why in cal.unused(scene)["burn_width"]
+        assert "burn_width" not in ensemble_module.variable_parameters(scene)
+    named = cal.unused(jm.Detonation(explosive="tnt", cells=8, burn="volume"))
+    assert set(named) == {"D", "gamma", "rho0", "burn_width"}
+    for burn in ("time", "max"):
+        assert "burn_width" not in cal.unused(jm.Detonation(cells=8, burn=burn))
+    with pytest.raises(ValueError, match=f"vary names 'burn_width', which the run does not use: {why}"):
+        jm.ensemble(
+            jm.Detonation(cells=8, burn="volume"), jm.MPQ(), {"burn_width": [1.5, 2.0]}, dt=1e-8, steps=2
+        )
+
+
 def test_a_manufactured_run_does_not_use_the_other_models_constants():
     """The neo-Hookean bar never reads the gas constants, the gas bar never the neo-Hookean ones, and
     a field of the user's that does not read the amplitude A leaves A unused: an ensemble refuses to
