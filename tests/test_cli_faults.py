@@ -507,8 +507,8 @@ def test_a_refusal_credits_another_study_only_with_the_files_it_writes(capsys, t
     (folder / ".jaxmpm-study").write_text("convergence\n")
     (folder / "notes.txt").write_text("MINE")
     line = usage(capsys, ["study", "talk", "--small", "--out", str(folder)], "--out")
-    assert "`jaxmpm study convergence` wrote" not in line
-    assert "already holds files that `jaxmpm study talk` did not write (notes.txt)" in line
+    assert "wrote" not in line
+    assert "holds files (notes.txt), and is marked as the folder of `jaxmpm study convergence`" in line
     (folder / "orders.md").write_text("theirs")  # a file the convergence study writes
     line = usage(capsys, ["study", "talk", "--small", "--out", str(folder)], "--out")
     assert "files that `jaxmpm study convergence` wrote (orders.md) and others (notes.txt)" in line

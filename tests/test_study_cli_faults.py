@@ -85,7 +85,7 @@ def test_a_temporary_file_a_killed_run_left_is_the_studys_own(capsys, tmp_path, 
     (out / MARK).write_text("convergence\n")  # another study's folder: its files are not talk's
     (out / ".notes.txt.4242-0badcafe.tmp").unlink()
     leftover.write_text('{"ro')
-    line = usage(capsys, ["study", "talk", "--small", "--out", str(out)], "`jaxmpm study convergence` wrote")
+    line = usage(capsys, ["study", "talk", "--small", "--out", str(out)], "of `jaxmpm study convergence`")
     assert leftover.name in line and leftover.exists() and len(ran) == 1
 
 

@@ -151,7 +151,7 @@ def _whose(held: list[str], name: str, owner: str | None) -> str:
     theirs = [n for n in held if n in outputs or outputs.leftover(n)]
     rest = [n for n in held if n not in theirs]
     if not theirs:
-        return f"files that `jaxmpm study {name}` did not write ({_listed(rest)})"
+        return f"files ({_listed(rest)}), and is marked as the folder of `jaxmpm study {owner}`"
     whose = f"files that `jaxmpm study {owner}` wrote ({_listed(theirs)})"
     return f"{whose} and others ({_listed(rest)})" if rest else whose
 
