@@ -395,3 +395,33 @@ def test_out_that_is_not_a_regular_file_is_never_replaced(capsys, tmp_path):
         assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
     with pytest.raises(ValueError, match=rf"^out={fifo} is not a regular file"):
         jm.long_run.run(jm.GasExpansion(cells=2), jm.MPQ(), dt=1e-5, steps=2, out=fifo, overwrite=True)
+
+
+@pytest.mark.parametrize(
+    "argv, given",
+    [
+        (["run", "detonation", "explosive=compb", "D=8000", "--interpolator", "cpdi"], "D=8000"),
+        (["run", "manufactured", "P0=5", "--interpolator", "cpdi"], "P0=5"),
+        (["run", "detonation", "burn=volume", "burn_width=2", "--interpolator", "cpdi"], "burn_width=2"),
+        (["ensemble", "manufactured", "model=gas", "mu=3", "--vary", "P0=1:2", "--members", "2"], "mu=3"),
+        (["calibrate", "gurney-slab", "explosive=jwl", "gamma=3", "--fit", "A", "--data", "DATA"], "gamma=3"),
+    ],
+)
+def test_a_scene_parameter_the_run_does_not_read_is_refused(capsys, tmp_path, argv, given):
+    """A parameter the scene's run never reads would do nothing (a sweep over it would label identical
+    runs with different values): refused before anything runs, with why."""
+    data = tmp_path / "data.csv"
+    data.write_text("t,v_plate\n1e-6,100\n2e-6,200\n")
+    argv = [str(data) if a == "DATA" else a for a in argv]
+    run = [] if argv[0] == "calibrate" else ["--dt", "1e-8", "--steps", "1"]
+    line = usage(capsys, [*argv, *run], f"{given} would do nothing")
+    assert "does not use it" in line
+
+
+def test_the_gurney_constant_is_taken_for_gurneys_formula(capsys):
+    """sqrt_2E is not the run's but the command reports Gurney's velocity with it: taken."""
+    argv = ["run", "gurney-slab", "cells=5", "ppc=1", "pad=4", "sqrt_2E=2500", "--interpolator", "cpdi"]
+    assert main([*argv, "--dt", "1e-9", "--steps", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    expected = float(jm.GurneySlab(cells=5, ppc=1, pad=4, sqrt_2E=2500.0).gurney_velocity())
+    assert repr(expected) in json.dumps(out)

@@ -76,14 +76,28 @@ def scene(name: str, items: Sequence[str], options: Mapping[str, bool] | None = 
         The scene.
 
     Raises:
-        UsageError: an unknown scene or parameter, a value of the wrong type, or a value the scene
-            rejects.
+        UsageError: an unknown scene or parameter, a value of the wrong type, a value the scene
+            rejects, or a parameter the scene's run does not read (``jaxmpm.calibrate.unused``; but
+            ``REPORTED``).
     """
     kwargs = scene_arguments(name, items, options)
     try:
-        return jm.SCENES[name](**kwargs)
+        built = jm.SCENES[name](**kwargs)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    idle = jm.calibrate.unused(built)
+    aliases = ALIASES.get(name, {})
+    for given, raw in split(items, "scene parameters are name=value"):
+        key = aliases.get(given, given)
+        if key in idle and key not in REPORTED:
+            raise UsageError(f"{given}={raw} would do nothing: {idle[key]}; leave it out")
+    return built
+
+
+REPORTED = ("sqrt_2E",)
+"""Scene parameters that the scene's run does not read (``jaxmpm.calibrate.unused``) but the commands
+report with: the Gurney scenes' constant of Gurney's formula (``gurney_velocity``). Every other such
+parameter is refused where a command is given it."""
 
 
 def scene_arguments(name: str, items: Sequence[str], options: Mapping[str, bool] | None = None) -> dict:
