@@ -457,3 +457,63 @@ def test_cli_ensemble_needs_vary_or_from_fit(capsys):
 def test_cli_ensemble_grid_sizing_names_a_bad_corner_of_the_ranges(capsys):
     argv = ["ensemble", "gas-slab", "--vary", "P0=5e4:2e5", "--dt", "1e-5", "--steps", "2", "--members", "2"]
     usage(capsys, argv, "--vary: P0 must be > p_atm")
+
+
+FIT_MPQ_VISCOUS = {
+    "scene": "gas-slab",
+    "interpolator": "mpq",
+    "method": "lm",
+    "dt": 2e-5,
+    "pad": 48,
+    "viscosity": [2.0, 0.2],
+    "fixed": {"p_atm": 100000.0, "rho0": 1.0, "h": 0.125, "cells": 8, "ppc": 2},
+    "fitted": {"gamma": 1.4, "P0": 300000.0},
+    "offsets": {"gamma": 1.0, "P0": 100000.0},
+    "covariance_theta": {"gamma": {"gamma": 1e-14, "P0": 0.0}, "P0": {"gamma": 0.0, "P0": 1e-14}},
+}
+
+
+@pytest.mark.slow
+def test_cli_ensemble_from_fit_runs_the_fits_model(tmp_path, capsys):
+    """The members of --from-fit run the model the constants were fitted in: the fit's interpolator and
+    artificial viscosity (a member equals that model's own run), and another one is refused."""
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(FIT_MPQ_VISCOUS))
+    argv = [
+        "ensemble",
+        "gas-slab",
+        "--from-fit",
+        str(path),
+        "--members",
+        "1",
+        "--dt",
+        "2e-5",
+        "--steps",
+        "50",
+    ]
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["interpolator"] == "mpq" and out["viscosity"] == [2.0, 0.2]
+    (member,) = out["results"]
+    params = {**FIT_MPQ_VISCOUS["fixed"], **member["params"], "pad": out["pad"]}
+    sol = jm.simulate(
+        jm.GasSlab(**params),
+        jm.MPQ(),
+        dt=2e-5,
+        steps=50,
+        viscosity=jm.ArtificialViscosity(c_quad=2.0, c_lin=0.2),
+    )
+    expected = jm.scenes.gas_slab.free_surface(sol.state.x, sol.state.F, sol.state.corners, sol.body)
+    assert member["x_free"] == pytest.approx(float(expected), rel=1e-12)
+    for extra, match in (
+        (["--interpolator", "cpdi"], "--interpolator cpdi: the fit ran with mpq"),
+        (["--viscosity", "1,0.1"], "--viscosity 1,0.1: the fit ran with the artificial viscosity 2.0,0.2"),
+        (["--transfer", "apic"], "--transfer apic: the fit ran with flip"),
+        (["--artificial-cells", "1"], "--artificial-cells 1: the fit ran without artificial cells"),
+    ):
+        usage(capsys, [*argv, *extra], match)
+    plain = {**FIT_MPQ_VISCOUS, "viscosity": None}
+    path.write_text(json.dumps(plain))
+    usage(capsys, [*argv, "--viscosity"], "--viscosity 2.0,0.2: the fit ran without artificial viscosity")
+    assert main([*argv, "--interpolator", "mpq", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["viscosity"] is None

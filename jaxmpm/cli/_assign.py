@@ -265,17 +265,18 @@ def choices(text: str, option: str, allowed: Sequence[str]) -> list[str]:
     return items
 
 
-def viscosity(text: str | None) -> jm.ArtificialViscosity | None:
+def viscosity(text: str | None, scene: jm.AbstractScene | None = None) -> jm.ArtificialViscosity | None:
     """``--viscosity QUAD,LIN[,SHEAR]`` as the artificial viscosity (``None``: none).
 
     Args:
         text: the option's value, e.g. ``"2.0,0.2"`` or ``"2.0,0.2,0.5"``, or ``None`` when not given.
+        scene: the scene it is for: a 1D one refuses ``SHEAR`` (a shear viscosity vanishes in 1D).
 
     Returns:
         The ``ArtificialViscosity``, or ``None``.
 
     Raises:
-        UsageError: not two or three numbers >= 0.
+        UsageError: not two or three numbers >= 0, or three for a 1D scene.
     """
     if text is None:
         return None
@@ -290,6 +291,11 @@ def viscosity(text: str | None) -> jm.ArtificialViscosity | None:
         except ValueError:
             raise UsageError(f"{allowed}, got {text!r} ({item.strip()!r} is not a number)") from None
     shear = values[2] if len(values) == 3 else None
+    if shear is not None and scene is not None and scene.dim == 1:
+        raise UsageError(
+            f"--viscosity {text}: the third number, SHEAR, is a shear viscosity, which vanishes in 1D, "
+            f"and {scene.name} is 1D here: give QUAD,LIN"
+        )
     try:
         return jm.ArtificialViscosity(c_quad=values[0], c_lin=values[1], c_shear=shear)
     except ValueError as e:

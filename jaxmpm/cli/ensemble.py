@@ -53,9 +53,19 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--members", type=int, required=True, help="members (uniform random in the ranges)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the sample, an integer >= 0 (0)")
-    p.add_argument("--interpolator", default="cpdi", choices=list(jm.INTERPOLATORS))
+    p.add_argument(
+        "--interpolator", choices=list(jm.INTERPOLATORS), help="(default cpdi; with --from-fit the fit's)"
+    )
     p.add_argument("--transfer", default="flip", choices=list(jm.TRANSFERS))
     p.add_argument("--artificial-cells", type=int, default=0, metavar="N")
+    p.add_argument(
+        "--viscosity",
+        nargs="?",
+        const="2.0,0.2",
+        metavar="QUAD,LIN[,SHEAR]",
+        help="artificial viscosity in compression (default coefficients 2.0,0.2), and a shear viscosity "
+        "with a third coefficient (with --from-fit: the fit's)",
+    )
     p.add_argument("--dt", type=float, help="time step, with --steps (default: run to --t-end)")
     p.add_argument("--steps", type=int, help="number of steps, with --dt")
     p.add_argument("--t-end", type=float, metavar="T", help="end time (default: two wave transits, 2 L/c0)")
@@ -132,7 +142,10 @@ def command(args) -> int:
         raise UsageError(f"--members must be an integer >= 1, got {args.members}")
     if args.seed < 0:
         raise UsageError(f"--seed must be an integer >= 0, got {args.seed}")
-    settings = dict(transfer=jm.TRANSFERS[args.transfer](), artificial_cells=args.artificial_cells)
+    interpolator, viscosity = _model(args, fit_file, scene)
+    settings = dict(
+        transfer=jm.TRANSFERS[args.transfer](), artificial_cells=args.artificial_cells, viscosity=viscosity
+    )
     if args.dt is not None or args.steps is not None:
         if args.dt is None or args.steps is None or args.t_end is not None:
             raise UsageError("give --dt and --steps together, or --t-end (or neither: two wave transits)")
@@ -186,7 +199,7 @@ def command(args) -> int:
         timing = dict(t_end=t_end, cfl=args.cfl, max_steps=max_steps)
     if scene.name == "gas-slab":
         scene = _size_grid(scene, bounds, timing, fixed)
-    interp = jm.INTERPOLATORS[args.interpolator]()
+    interp = jm.INTERPOLATORS[interpolator]()
     try:
         model, _, steps, saveat = prepare(scene, interp, **timing, **settings)
     except ValueError as e:
@@ -240,7 +253,8 @@ def command(args) -> int:
         results.append(r)
     out = dict(
         scene=args.scene,
-        interpolator=args.interpolator,
+        interpolator=interpolator,
+        viscosity=None if viscosity is None else list(viscosity.coefficients()),
         members=args.members,
         devices=ens.devices,
         ok=int(np.sum(ens.ok)),
@@ -338,6 +352,59 @@ def _fit_json(path: str):
         raise UsageError(
             f"--from-fit: {path} is not JSON (the output of `jaxmpm calibrate --json`)"
         ) from None
+
+
+def _model(args, fit, scene) -> tuple[str, jm.ArtificialViscosity | None]:
+    """The members' interpolator and artificial viscosity: the command line's, or with ``--from-fit``
+    those the fit ran with (``jaxmpm calibrate`` fits with FLIP and no artificial cells), the model
+    whose constants the draws are; another given with it is refused.
+
+    Args:
+        args: the parsed command line.
+        fit: the fit's JSON object (``_fit_json``), or ``None``.
+        scene: the ensemble's scene.
+
+    Returns:
+        ``(interpolator name, viscosity or None)``.
+
+    Raises:
+        UsageError: a bad ``--viscosity``, or one of ``--interpolator``, ``--viscosity``,
+            ``--transfer``, ``--artificial-cells`` that differs from the fit's.
+    """
+    viscosity = _assign.viscosity(args.viscosity, scene)
+    if fit is None:
+        return args.interpolator or "cpdi", viscosity
+    theirs = "and its constants are that model's"
+    ran = fit.get("interpolator")
+    ran = ran if ran in jm.INTERPOLATORS else "cpdi"
+    if args.interpolator is not None and args.interpolator != ran:
+        raise UsageError(
+            f"--interpolator {args.interpolator}: the fit ran with {ran}, {theirs}; leave --interpolator "
+            f"out (or give {ran})"
+        )
+    coefficients = fit.get("viscosity")
+    fitted = None
+    if isinstance(coefficients, list) and coefficients:
+        fitted = _assign.viscosity(",".join(str(float(c)) for c in coefficients), scene)
+    if viscosity is not None:
+        if fitted is None:
+            raise UsageError(
+                f"--viscosity {args.viscosity}: the fit ran without artificial viscosity, {theirs}; "
+                "leave it out"
+            )
+        if viscosity.coefficients() != fitted.coefficients():
+            shown = ",".join(str(c) for c in fitted.coefficients())
+            raise UsageError(
+                f"--viscosity {args.viscosity}: the fit ran with the artificial viscosity {shown}, "
+                f"{theirs}; leave --viscosity out (or give the fit's)"
+            )
+    if args.transfer != "flip":
+        raise UsageError(f"--transfer {args.transfer}: the fit ran with flip, {theirs}")
+    if args.artificial_cells:
+        raise UsageError(
+            f"--artificial-cells {args.artificial_cells}: the fit ran without artificial cells, {theirs}"
+        )
+    return ran, fitted
 
 
 def fit_scene(obj, name: str, items, varied) -> list[str]:

@@ -143,12 +143,7 @@ def command(args) -> int:
         _check_grad(scene, names)
     interp = jm.INTERPOLATORS[args.interpolator]()
     transfer = jm.TRANSFERS[args.transfer]()
-    viscosity = _assign.viscosity(args.viscosity)
-    if viscosity is not None and viscosity.c_shear is not None and scene.dim == 1:
-        raise UsageError(
-            f"--viscosity {args.viscosity}: the third number, SHEAR, is a shear viscosity, which vanishes "
-            f"in 1D, and {args.scene} is 1D here: give QUAD,LIN"
-        )
+    viscosity = _assign.viscosity(args.viscosity, scene)
     settings = dict(
         transfer=transfer,
         artificial_cells=args.artificial_cells,
