@@ -257,7 +257,8 @@ class NeoHookean(AbstractMaterial):
         # dsigma/dF = lambda (1 - ln F) / F^2 + mu (1 + 1 / F^2); it turns negative (the material
         # softens) only for ln F > 1 + mu (1 + F^2) / lambda, where the speed is taken as zero.
         stiffness = self.lam * (1.0 - jnp.log(f)) / (f * f) + self.mu * (1.0 + 1.0 / (f * f))
-        return f * jnp.sqrt(jnp.maximum(stiffness, 0.0) / rho0)
+        stiff = stiffness > 0.0  # (the square root of the clamp at 0 would give 0 * inf derivatives)
+        return jnp.where(stiff, f * jnp.sqrt(jnp.where(stiff, stiffness, 1.0) / rho0), 0.0)
 
     def sound_speed_from_stress(self, F, sigma, rho0):
         del sigma

@@ -139,3 +139,20 @@ def test_bad_poisson_ratio_is_named():
         jm.LinearElastic(E=1.0, nu=0.5)
     with pytest.raises(ValueError, match="nu must be >= 0"):
         jm.LinearElastic(E=1.0, nu=-0.1)
+
+
+def test_the_1d_neo_hookean_speed_has_a_finite_derivative_where_the_material_has_softened():
+    """Past ln F > 1 + mu (1 + F^2) / lambda the 1D stiffness is negative and the speed is taken as 0:
+    its derivative there is 0, not 0 * inf (the square root's at its clamp)."""
+    mat = jm.NeoHookean(lam=1e9, mu=1e3)
+    rho0 = jnp.asarray(1000.0)
+    speed = lambda F, lam: jm.NeoHookean(lam=lam, mu=1e3).sound_speed(F, rho0)
+    F = jnp.full((1, 1), 3.0)
+    assert float(mat.sound_speed(F, rho0)) == 0.0
+    dF, dlam = jax.grad(speed, argnums=(0, 1))(F, jnp.asarray(1e9))
+    assert float(dF[0, 0]) == 0.0 and float(dlam) == 0.0
+    assert float(jax.jvp(lambda F: speed(F, jnp.asarray(1e9)), (F,), (jnp.ones_like(F),))[1]) == 0.0
+    F = jnp.full((1, 1), 1.3)  # stiff: the speed's own derivative
+    g = float(jax.grad(speed)(F, jnp.asarray(1e9))[0, 0])
+    fd = (float(speed(F + 1e-6, jnp.asarray(1e9))) - float(speed(F - 1e-6, jnp.asarray(1e9)))) / 2e-6
+    assert g == pytest.approx(fd, rel=1e-6)
