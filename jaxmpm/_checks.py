@@ -81,7 +81,8 @@ def is_bool(value: object) -> bool:
 
 
 def check_real(name: str, value) -> None:
-    """Check that a concrete value is a real number (or an array of them); a tracer passes.
+    """Check that a concrete value is a real number (or an array of them); a tracer passes, and so do
+    numbers given together (a tuple or list) of which one is a tracer (``(u, 0.0)`` under ``jax.grad``).
 
     Args:
         name: the parameter's name, for the message.
@@ -91,6 +92,10 @@ def check_real(name: str, value) -> None:
         ValueError: ``value`` is a string, ``None``, a complex number, a bool (``is_bool``) or another
             non-number: ``"{name} must be a real number, got {value!r}"`` (a long value shortened).
     """
+    if isinstance(value, (tuple, list)) and any_traced(value):
+        for item in value:
+            check_real(name, item)
+        return
     if is_concrete(value) and (not is_real(value) or is_bool(value)):
         raise ValueError(f"{name} must be a real number, got {brief(value)}")
 

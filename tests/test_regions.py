@@ -612,3 +612,17 @@ def test_a_split_inside_a_particles_domain_is_reported_where_the_seeded_regions_
     default = jm.GurneySlab()
     assert float(default.charge) == default.split * float(default.L)
     assert float(default.plate) == (1.0 - default.split) * float(default.L)
+
+
+def test_a_region_velocity_given_as_numbers_may_be_traced():
+    """velocity=(u, 0.0) with u under jax.grad is real numbers, as a traced array is: its derivative
+    is that of the array's."""
+    gas = jm.AdiabaticGas(P0=1.0, gamma=1.4, p_atm=0.0)
+
+    def kinetic(u, as_tuple):
+        velocity = (u, 0.0) if as_tuple else jnp.stack([u, 0.0 * u])
+        return jnp.sum(jm.Region(Box((0.0, 0.0), (1.0, 1.0)), gas, 1.0, velocity).velocity ** 2)
+
+    assert float(jax.grad(kinetic)(0.3, True)) == float(jax.grad(kinetic)(0.3, False)) == pytest.approx(0.6)
+    with pytest.raises(ValueError, match="velocity must be a real number"):
+        jm.Region(Box((0.0, 0.0), (1.0, 1.0)), gas, 1.0, ("fast", 0.0))
