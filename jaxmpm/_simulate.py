@@ -60,7 +60,10 @@ class SaveAt(eqx.Module):
     """What ``simulate`` keeps besides the final state.
 
     By default nothing (like diffrax's ``SaveAt(t1=True)``). With ``every=k`` it keeps the named
-    ``fields`` at steps ``0, k, 2k, ...`` (nested scans: only the saved slices are stored).
+    ``fields`` at steps ``0, k, 2k, ...`` (nested scans: only the saved slices are stored). A named
+    field that the run does not have (``C`` without APIC, ``corners`` without MPQ or CPDI2, ``e``
+    without an energy equation, ``internal`` without history variables, ``x_traction`` without
+    tractions) is left out of the history; one that names none of the run's is refused.
 
     Attributes:
         every: save every ``every`` steps, or ``None`` to keep no history (static).
