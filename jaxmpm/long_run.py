@@ -725,8 +725,8 @@ def run_timed(
             shows it in a terminal or notebook and not in pipes or CI; the environment variable
             ``JAXMPM_PROGRESS=0`` or ``1`` overrides that.
         throw: raise ``SimulationError`` on breakdown (after saving); else return with the status.
-        overwrite: replace ``out`` if it exists. Without it an existing ``out`` is an error, so that
-            no saved run is lost (continue a saved run with ``resume`` instead).
+        overwrite: replace ``out`` if it exists (only with ``out``). Without it an existing ``out`` is
+            an error, so that no saved run is lost (continue a saved run with ``resume`` instead).
         **others: refused: an argument of ``simulate`` that a long run does not take
             (``SIMULATE_ONLY``), or a keyword no run takes.
 
@@ -760,6 +760,8 @@ def run_timed(
             raise ValueError("checkpoint_every needs out=FILE to write the checkpoints to")
     if not isinstance(overwrite, bool):
         raise ValueError(f"overwrite must be True or False, got {overwrite!r}")
+    if overwrite and out is None:
+        raise ValueError("overwrite=True needs out=FILE, the file it lets the run replace")
     model, dt_arr, steps, saveat = prepare(
         scene,
         interpolator,

@@ -127,6 +127,8 @@ def test_bad_arguments():
         long_run.run(SCENE, jm.SPQ(), dt=1e-5, steps=10, chunk=7, saveat=jm.SaveAt(every=2), progress=False)
     with pytest.raises(ValueError, match="checkpoint_every needs out"):
         long_run.run(SCENE, jm.SPQ(), dt=1e-5, steps=10, checkpoint_every=1, progress=False)
+    with pytest.raises(ValueError, match="overwrite=True needs out=FILE"):  # (it would replace nothing)
+        long_run.run(SCENE, jm.SPQ(), dt=1e-5, steps=10, overwrite=True, progress=False)
     with pytest.raises(ValueError, match="chunk must be an integer >= 1"):
         long_run.run(SCENE, jm.SPQ(), dt=1e-5, steps=10, chunk=0, progress=False)
 
