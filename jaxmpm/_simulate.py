@@ -404,7 +404,23 @@ def advance(
             out["t"] = state.t
         return state, out
 
-    state, saved = jax.lax.scan(block, state, None, length=n_out)
+    def blocks(state, m):  # m save intervals of k steps, and what each saves
+        return jax.lax.scan(block, state, None, length=m)
+
+    if checkpoint is None or k > checkpoint or n_out * k <= checkpoint:
+        state, saved = blocks(state, n_out)
+    else:
+        # Save intervals no longer than a checkpoint block (each scanned plainly by run) are
+        # checkpointed in groups of a block's length, so that reverse mode stores the state at group
+        # ends only, as without a history.
+        g = checkpoint // k
+        groups, left = divmod(n_out, g)
+        group = jax.checkpoint(lambda st, _: blocks(st, g), prevent_cse=False)
+        state, saved = jax.lax.scan(group, state, None, length=groups)
+        saved = jax.tree.map(lambda a: a.reshape((groups * g, *a.shape[2:])), saved)
+        if left:
+            state, more = blocks(state, left)
+            saved = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), saved, more)
     return real(run(state, rem)), saved
 
 

@@ -160,6 +160,39 @@ def test_checkpointing_gives_the_same_gradient(block):
     np.testing.assert_allclose(a.state.F, b.state.F, rtol=16 * EPS)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("every", [1, 5, 40])
+def test_checkpointing_bounds_memory_with_a_history_saved_often(every):
+    """With a history saved every k steps, k at most the checkpoint block, checkpointed reverse mode
+    still stores states at block ends only (groups of save intervals): its compiled gradient needs a
+    fraction of the memory of the plain one, and gives the plain one's gradient and history."""
+    steps = 800  # checkpoint=True: blocks of ceil(sqrt(800 / 8)) = 10 steps
+
+    def f(beta, checkpoint):
+        scene = jm.GasExpansion(beta=beta, cells=16, h=1 / 16, pad=4)
+        sol = jm.simulate(
+            scene,
+            jm.MPQ(),
+            dt=1e-6,
+            steps=steps,
+            checkpoint=checkpoint,
+            saveat=jm.SaveAt(every=every, fields=("x",)),
+        )
+        return jnp.sum(sol.state.F) + 1e-3 * jnp.sum(sol.history["x"][-3:]), sol.history["x"]
+
+    def temp_bytes(checkpoint):
+        grad = jax.jit(jax.grad(lambda b: f(b, checkpoint)[0]))
+        return grad.lower(200.0).compile().memory_analysis().temp_size_in_bytes
+
+    plain, checkpointed = temp_bytes(False), temp_bytes(True)
+    assert checkpointed < plain / 4, (plain, checkpointed)
+    (value, history), (value0, history0) = f(200.0, True), f(200.0, False)
+    np.testing.assert_array_equal(np.asarray(history), np.asarray(history0))
+    assert history.shape[0] == steps // every + 1 and float(value) == float(value0)
+    g, g0 = jax.grad(lambda b: f(b, True)[0])(200.0), jax.grad(lambda b: f(b, False)[0])(200.0)
+    np.testing.assert_allclose(float(g), float(g0), rtol=REORDER_RTOL)
+
+
 def test_one_sided_derivative_on_a_node():
     """A point exactly on node j uses the cell to its right: dS_j/dx = -1/h, dS_{j+1}/dx = +1/h."""
     from jaxmpm.interpolators._transfer import point_stencil
