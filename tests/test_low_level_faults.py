@@ -104,6 +104,7 @@ def test_step_takes_a_python_number_as_simulate_does():
         (dict(contiguous=1), "contiguous must be True or False, got 1"),
         (dict(max_span=0), "max_span must be an integer >= 1, got 0"),
         (dict(max_span=2.0), "max_span must be an integer >= 1, got 2.0"),
+        (dict(max_span=2), "max_span=2 would do nothing for uGIMP"),  # its domains never outgrow a cell
     ],
 )
 def test_gimp_options_are_checked_by_name(kwargs, match):

@@ -31,7 +31,8 @@ class GIMP(AbstractInterpolator):
 
     Attributes:
         contiguous: ``False`` for uGIMP, ``True`` for cpGIMP (static).
-        max_span: the longest domain, in cells, that the stencil covers (static).
+        max_span: the longest domain, in cells, that the stencil covers (static; cpGIMP's only:
+            uGIMP's domains never outgrow a cell).
     """
 
     contiguous: bool = eqx.field(static=True, default=False, converter=python_bool)
@@ -48,10 +49,16 @@ class GIMP(AbstractInterpolator):
 
         Raises:
             ValueError: ``contiguous`` is not ``True`` or ``False``, or ``max_span`` is not an
-                integer >= 1 (a NumPy integer is one).
+                integer >= 1 (a NumPy integer is one), or above 1 for uGIMP (whose domains, ``2 r0 =
+                h / ppc``, never outgrow a cell: a wider stencil would do nothing).
         """
         check_bool("contiguous", self.contiguous)
         check_int("max_span", self.max_span, 1)
+        if not self.contiguous and self.max_span > 1:
+            raise ValueError(
+                f"max_span={self.max_span} would do nothing for uGIMP (contiguous=False), whose domains "
+                "keep their length, h / ppc, at most a cell: leave it at 1, or give contiguous=True (cpGIMP)"
+            )
 
     @property
     def name(self) -> str:
