@@ -418,6 +418,14 @@ def test_a_scene_parameter_the_run_does_not_read_is_refused(capsys, tmp_path, ar
     assert "does not use it" in line
 
 
+def test_grad_of_a_parameter_the_run_does_not_read_is_refused(capsys):
+    """Its derivative would be 0 because the run never reads it, not because the error is
+    insensitive to it: refused, with why."""
+    argv = ["run", "manufactured", "--interpolator", "cpdi", "--dt", "1e-3", "--steps", "2"]
+    line = usage(capsys, [*argv, "--grad", "mu,P0"], "--grad: P0 would do nothing")
+    assert "the run of model=neo-hookean does not use it" in line
+
+
 def test_the_gurney_constant_is_taken_for_gurneys_formula(capsys):
     """sqrt_2E is not the run's but the command reports Gurney's velocity with it: taken."""
     argv = ["run", "gurney-slab", "cells=5", "ppc=1", "pad=4", "sqrt_2E=2500", "--interpolator", "cpdi"]

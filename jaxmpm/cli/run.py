@@ -382,7 +382,8 @@ def _check_timing_options(args) -> None:
 
 def _check_grad(scene, names: list[str]) -> None:
     """``--grad NAMES`` before the run: the scene has an exact solution (``F_rms_rel`` is the error
-    against it) and each name is one of its continuous parameters, ``h`` or ``dt``."""
+    against it) and each name is one of its continuous parameters, ``h`` or ``dt``, that the run reads
+    (``jaxmpm.calibrate.unused``)."""
     if scene.exact is None:
         having = [name for name, cls in jm.SCENES.items() if cls.exact is not None]
         raise UsageError(
@@ -393,6 +394,10 @@ def _check_grad(scene, names: list[str]) -> None:
         jm.sensitivity.check_names(scene, names)
     except ValueError as e:
         raise UsageError(f"--grad: {e}") from None
+    idle = jm.calibrate.unused(scene)
+    for name in names:
+        if name in idle:  # its derivative is 0 because the run never reads it
+            raise UsageError(f"--grad: {name} would do nothing: {idle[name]}")
 
 
 def _settings(args, sol, viscosity, devices=None) -> dict:
