@@ -80,17 +80,15 @@ def scene(name: str, items: Sequence[str], options: Mapping[str, bool] | None = 
             rejects, or a parameter the scene's run does not read (``jaxmpm.calibrate.unused``; but
             ``REPORTED``).
     """
-    kwargs = scene_arguments(name, items, options)
+    kwargs, spelled = _arguments(name, items, options)
     try:
         built = jm.SCENES[name](**kwargs)
     except ValueError as e:
         raise UsageError(str(e)) from None
     idle = jm.calibrate.unused(built)
-    aliases = ALIASES.get(name, {})
-    for given, raw in split(items, "scene parameters are name=value"):
-        key = aliases.get(given, given)
+    for key in kwargs:
         if key in idle and key not in REPORTED:
-            raise UsageError(f"{given}={raw} would do nothing: {idle[key]}; leave it out")
+            raise UsageError(f"{spelled[key]} would do nothing: {idle[key]}; leave it out")
     return built
 
 
@@ -116,6 +114,11 @@ def scene_arguments(name: str, items: Sequence[str], options: Mapping[str, bool]
     Raises:
         UsageError: an unknown scene or parameter, or a value of the wrong type.
     """
+    return _arguments(name, items, options)[0]
+
+
+def _arguments(name: str, items: Sequence[str], options: Mapping[str, bool] | None) -> tuple[dict, dict]:
+    """``scene_arguments``, and each parameter's ``name=value`` as given (for the messages)."""
     if name not in jm.SCENES:
         raise UsageError(f"unknown scene {name!r}; allowed: {', '.join(sorted(jm.SCENES))}")
     cls = jm.SCENES[name]
@@ -135,7 +138,7 @@ def scene_arguments(name: str, items: Sequence[str], options: Mapping[str, bool]
         if key in kwargs:  # the same parameter under another of its names
             raise UsageError(f"{key} is given twice: {spelled[key]!r} and {given + '=' + raw!r}")
         kwargs[key], spelled[key] = _typed(given, raw, defaults[key]), f"{given}={raw}"
-    return kwargs
+    return kwargs, spelled
 
 
 def _typed(key: str, raw: str, default):

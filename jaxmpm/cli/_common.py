@@ -326,6 +326,23 @@ def scalar(x) -> float | None:
     return None if x is None else float(x)
 
 
+def add_viscosity_option(p, note: str = "") -> None:
+    """Add ``--viscosity [QUAD,LIN[,SHEAR]]`` (read by ``_assign.viscosity``) to the parser ``p``.
+
+    Args:
+        p: a subcommand's parser.
+        note: appended to the help, e.g. ``" (with --from-fit: the fit's)"``.
+    """
+    p.add_argument(
+        "--viscosity",
+        nargs="?",
+        const="2.0,0.2",
+        metavar="QUAD,LIN[,SHEAR]",
+        help="artificial viscosity in compression (default coefficients 2.0,0.2), and a shear viscosity "
+        f"with a third coefficient{note}",
+    )
+
+
 def add_process_options(p, devices: bool = True, spread: str = "the particles") -> None:
     """Options to spread a run over several devices and to start as one of several processes.
 

@@ -17,7 +17,7 @@ from jaxmpm.scenes.gas_slab import pad_for
 from jaxmpm.sensitivity import static_parameters
 
 from . import _assign
-from ._common import UsageError, as_option, flags, measured_where, print_json
+from ._common import UsageError, add_viscosity_option, as_option, flags, measured_where, print_json
 
 _MOST_STEPS = 2**31 - 1  # the bound of a step counter
 
@@ -58,14 +58,7 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("--transfer", default="flip", choices=list(jm.TRANSFERS))
     p.add_argument("--artificial-cells", type=int, default=0, metavar="N")
-    p.add_argument(
-        "--viscosity",
-        nargs="?",
-        const="2.0,0.2",
-        metavar="QUAD,LIN[,SHEAR]",
-        help="artificial viscosity in compression (default coefficients 2.0,0.2), and a shear viscosity "
-        "with a third coefficient (with --from-fit: the fit's)",
-    )
+    add_viscosity_option(p, " (with --from-fit: the fit's)")
     p.add_argument("--dt", type=float, help="time step, with --steps (default: run to --t-end)")
     p.add_argument("--steps", type=int, help="number of steps, with --dt")
     p.add_argument("--t-end", type=float, metavar="T", help="end time (default: two wave transits, 2 L/c0)")

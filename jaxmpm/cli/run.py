@@ -23,6 +23,7 @@ from ._common import (
     CannotWrite,
     UsageError,
     add_process_options,
+    add_viscosity_option,
     as_option,
     devices_option,
     flags,
@@ -73,14 +74,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--t-end", type=float, metavar="T", help="instead of --dt/--steps: run to time T")
     p.add_argument("--cfl", type=float, default=0.5, help="with --t-end: dt = CFL h / max(c + |v|) (0.5)")
     p.add_argument("--max-steps", type=int, metavar="N", help="with --t-end: the bound on the step count")
-    p.add_argument(
-        "--viscosity",
-        nargs="?",
-        const="2.0,0.2",
-        metavar="QUAD,LIN[,SHEAR]",
-        help="artificial viscosity in compression (default coefficients 2.0,0.2), and a shear viscosity "
-        "with a third coefficient",
-    )
+    add_viscosity_option(p)
     p.add_argument(
         "--cfl-limit",
         default="1.0",
